@@ -1,0 +1,53 @@
+"""``mrodrake bench ts|ltl``: benchmarks that print a table (never part of the default test run)."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+SCENARIOS = Path(__file__).resolve().parents[1] / "scenarios"
+
+_TS_PROBE = r"""
+import json, resource, sys, time
+from mrodrake.scenario import load_scenario
+from mrodrake.ts import TransitionSystem
+sc = load_scenario(sys.argv[1])
+before = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+ts = TransitionSystem(sc)
+ets = ts.build()
+after = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+print(json.dumps({"states": ets.num_states, "transitions": ets.num_transitions,
+                  "seconds": ets.build_seconds, "peak_mb": after / 1024, "delta_mb": (after - before) / 1024}))
+"""
+
+
+def bench_ts(repeats: int = 3, stream=sys.stdout) -> list[dict]:
+    """Build the case studies' reachable TS in fresh processes; report best time and peak memory."""
+    rows = []
+    for name in ("case_study_1", "case_study_2"):
+        runs = []
+        for _ in range(repeats):
+            out = subprocess.run([sys.executable, "-c", _TS_PROBE, str(SCENARIOS / f"{name}.yaml")],
+                                 capture_output=True, text=True, check=True)
+            runs.append(json.loads(out.stdout.strip().splitlines()[-1]))
+        best = min(runs, key=lambda r: r["seconds"])
+        rows.append({"scenario": name, **best, "median_seconds": sorted(r["seconds"] for r in runs)[len(runs) // 2]})
+    print(f"{'scenario':<14} {'states':>8} {'transitions':>12} {'best s':>8} {'median s':>9} "
+          f"{'peak RSS MB':>12} {'build MB':>9}", file=stream)
+    for r in rows:
+        print(f"{r['scenario']:<14} {r['states']:>8} {r['transitions']:>12} {r['seconds']:>8.3f} "
+              f"{r['median_seconds']:>9.3f} {r['peak_mb']:>12.0f} {r['delta_mb']:>9.0f}", file=stream)
+    print("targets: case_study_2 <= 1 s and <= 1024 MB (paper: 1.52 h)", file=stream)
+    return rows
+
+
+def run(what: str, args=None) -> int:
+    if what == "ts":
+        bench_ts()
+    elif what == "ltl":
+        from mrodrake.logic.bench import run_ltl_benchmark
+
+        run_ltl_benchmark()
+    return 0

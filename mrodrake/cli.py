@@ -1,0 +1,143 @@
+"""The ``mrodrake`` command line: validate, ts, ltl2nba, bench (more subcommands arrive with later stages).
+
+User errors print ``error: <one line>`` (plus a caret line for formula errors) and exit with status 2;
+Ctrl-C exits with status 130 without a traceback.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+
+from mrodrake import __version__
+from mrodrake.errors import UserError
+
+
+def _cmd_validate(args: argparse.Namespace) -> int:
+    from mrodrake.scenario import load_scenario
+
+    for path in args.scenarios:
+        s = load_scenario(path)
+        print(f"{path}: ok ({s.name}: {len(s.robots)} robots, {len(s.objects)} objects, "
+              f"{len(s.regions)} regions, {len(s.workspace.obstacles)} obstacles)")
+    return 0
+
+
+def _cmd_ts(args: argparse.Namespace) -> int:
+    from mrodrake.scenario import load_scenario
+    from mrodrake.ts import TransitionSystem
+
+    scenario = load_scenario(args.scenario)
+    ts = TransitionSystem(scenario)
+    ets = ts.build(progress=_progress_callback("building TS") if not args.json else None)
+    if args.json:
+        _write_ts_json(ets, sys.stdout)
+        return 0
+    print(f"scenario:     {scenario.name}")
+    print(f"robots:       {ts.N}  objects: {ts.M}  regions: {ts.K}  propositions: {len(ts.propositions)}")
+    print(f"initial:      {json.dumps(ts.state_dict(ts.initial))}")
+    print(f"states:       {ets.num_states}  (reachable from the initial state)")
+    print(f"transitions:  {ets.num_transitions}  (including {ets.num_states} self-loops)")
+    print(f"build time:   {ets.build_seconds:.3f} s")
+    return 0
+
+
+def _write_ts_json(ets, out) -> None:
+    ts = ets.ts
+    out.write('{"scenario": %s, "propositions": %s, "initial": 0,\n "states": [\n'
+              % (json.dumps(ts.scenario.name), json.dumps(ts.propositions)))
+    for u in range(ets.num_states):
+        s = ets.state(u)
+        d = ts.state_dict(s)
+        d = {"id": u, **d, "label": sorted(ts.label(s))}
+        out.write(("  " if u == 0 else " ,") + json.dumps(d) + "\n")
+    out.write(' ],\n "transitions": [\n')
+    first = True
+    for u in range(ets.num_states):
+        s = ets.state(u)
+        for e in range(int(ets.indptr[u]), int(ets.indptr[u + 1])):
+            v = int(ets.targets[e])
+            acts = [ts.format_action(a, "names") for a in ts.actions(s, ets.state(v))]
+            rec = {"src": u, "dst": v, "cost": round(float(ets.costs[e]), 6), "actions": acts}
+            out.write(("  " if first else " ,") + json.dumps(rec) + "\n")
+            first = False
+    out.write(" ]}\n")
+
+
+def _progress_callback(desc: str):
+    """A tqdm-backed progress callback ``(done, total)`` for long builds (stderr, only on a TTY)."""
+    if not sys.stderr.isatty():
+        return None
+    from tqdm import tqdm
+
+    bar = tqdm(desc=desc, unit="state", leave=False)
+
+    def update(done: int, total: int) -> None:
+        bar.total = total
+        bar.n = done
+        bar.refresh()
+
+    return update
+
+
+def _cmd_bench(args: argparse.Namespace) -> int:
+    from mrodrake import bench
+
+    return bench.run(args.what, args)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="mrodrake",
+        description="Plan and control multi-robot-object systems under LTL tasks (Verginis, Kantaros, Dimarogonas).",
+    )
+    parser.add_argument("--version", action="version", version=f"mrodrake {__version__}")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    sub.required = True
+
+    p = sub.add_parser("validate", help="check scenario files", description="Validate scenario YAML files; "
+                       "print one line per file, or one error line and exit 2.")
+    p.add_argument("scenarios", nargs="+", metavar="SCENARIO")
+    p.set_defaults(func=_cmd_validate)
+
+    p = sub.add_parser("ts", help="build the reachable transition system",
+                       description="Build the coupled transition system (paper Def. 4) reachable from the "
+                       "initial state; print its size and build time, or everything as JSON.")
+    p.add_argument("scenario", metavar="SCENARIO")
+    p.add_argument("--json", action="store_true", help="print states (with labels) and transitions "
+                   "(with costs and actions) as JSON")
+    p.set_defaults(func=_cmd_ts)
+
+    try:
+        from mrodrake.logic import cli as logic_cli
+    except ImportError:
+        logic_cli = None
+    if logic_cli is not None:
+        logic_cli.add_subparser(sub)
+
+    p = sub.add_parser("bench", help="benchmarks (not tests)", description="Run a benchmark and print a table.")
+    p.add_argument("what", choices=["ts", "ltl"], help="what to benchmark")
+    p.set_defaults(func=_cmd_bench)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        return int(args.func(args) or 0)
+    except UserError as e:
+        print(f"error: {e}", file=sys.stderr)
+        if e.detail:
+            print(e.detail, file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print("interrupted", file=sys.stderr)
+        return 130
+    except BrokenPipeError:
+        return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,509 @@
+"""The coupled multi-robot-object transition system TS (paper Definition 4, Section III-B).
+
+A state is a flat tuple of ints ``(k_1..k_N, k^o_1..k^o_M, g_1..g_N)``: the region index of every
+robot, the region index of every object, and the object each robot grasps (−1 for none).  This is the
+paper's (π̄, π̄_o, AG) with AG stored per robot (a robot grasps at most one object).
+
+A state is *valid* iff every grasping robot is in its object's region and, in every region, the
+entities fit (P_s): free robots (radius r_i), ungrasped objects (r^o_j) and robots-object teams
+(covering radius r_A,j, see :func:`mrodrake.geometry.grasp_layout`).
+
+A transition s → s' is a set of simultaneous actions, one per robot (all idle = self-loop):
+
+* a free robot (free in s and s') stays or navigates to any other region (π_k →_i π_k');
+* grasp i →g j: i free in s, grasping j in s', co-located with j, region unchanged, j not moving;
+* release i →r j: i grasping j in s, free in s', region unchanged, j not moving;
+* a robot grasping j in s and s' moves iff j moves, to the same region;
+* object j moves (π_k →T_{A,j} π_k') only if the same non-empty team A grasps it in s and s' and
+  Λ holds: Σ_{i∈A} ζ_i ≥ required power of j; a robot never switches objects in one step;
+* both states valid.
+
+Labels: ``<robot>_<region>`` / ``<object>_<region>`` true where the entity is.  Cost
+χ(s, s') = Σ_i ‖p_{k_i} − p_{k'_i}‖ + c_grasp · (number of grasps and releases).
+"""
+
+from __future__ import annotations
+
+import array
+import itertools
+import time
+from dataclasses import dataclass
+from typing import Iterator, Sequence, Union
+
+import numpy as np
+
+from mrodrake.geometry import grasp_layout
+from mrodrake.scenario import Scenario, entities_fit
+
+State = tuple
+
+
+@dataclass(frozen=True, order=True)
+class Navigate:
+    """π_src →_robot π_dst."""
+
+    robot: int
+    src: int
+    dst: int
+
+
+@dataclass(frozen=True, order=True)
+class Grasp:
+    """robot →g obj."""
+
+    robot: int
+    obj: int
+
+
+@dataclass(frozen=True, order=True)
+class Release:
+    """robot →r obj."""
+
+    robot: int
+    obj: int
+
+
+@dataclass(frozen=True, order=True)
+class Transport:
+    """π_src →T_{team,obj} π_dst."""
+
+    obj: int
+    team: tuple[int, ...]
+    src: int
+    dst: int
+
+
+Action = Union[Navigate, Grasp, Release, Transport]
+
+
+class TransitionSystem:
+    """TS of a scenario with implicit successors; see :meth:`build` for the explicit reachable graph."""
+
+    def __init__(self, scenario: Scenario):
+        self.scenario = scenario
+        self.N, self.M, self.K = len(scenario.robots), len(scenario.objects), len(scenario.regions)
+        self.robot_names = scenario.robot_names
+        self.object_names = scenario.object_names
+        self.region_names = scenario.region_names
+        self.robot_radius = [r.radius for r in scenario.robots]
+        self.power = [r.power for r in scenario.robots]
+        self.object_radius = [o.radius for o in scenario.objects]
+        self.required_power = [o.required_power for o in scenario.objects]
+        self.region_radius = [g.radius for g in scenario.regions]
+        self.centers = np.array([g.center for g in scenario.regions], dtype=float)
+        diff = self.centers[:, None, :] - self.centers[None, :, :]
+        self.dist = np.sqrt((diff**2).sum(-1))
+        self._dist = self.dist.tolist()
+        self.spacing = scenario.layout.spacing
+        self.grasp_gap = scenario.layout.grasp_gap
+        self.grasp_cost = scenario.planning.grasp_cost
+        self.propositions = scenario.propositions()
+        self._prop_index = {p: b for b, p in enumerate(self.propositions)}
+        self._region_index = {g: k for k, g in enumerate(self.region_names)}
+        self._cover: dict[tuple[int, tuple[int, ...]], float] = {}
+        self._fits: dict[tuple[int, tuple[float, ...]], bool] = {}
+        self._valid: dict[State, bool] = {}
+        self._label: dict[State, int] = {}
+        self.initial = tuple(
+            [self._region_index[r.initial_region] for r in scenario.robots]
+            + [self._region_index[o.initial_region] for o in scenario.objects]
+            + [-1] * self.N
+        )
+
+    # ------------------------------------------------------------------ state accessors
+    def robots_of(self, s: State) -> tuple[int, ...]:
+        return s[: self.N]
+
+    def objects_of(self, s: State) -> tuple[int, ...]:
+        return s[self.N : self.N + self.M]
+
+    def grasps_of(self, s: State) -> tuple[int, ...]:
+        return s[self.N + self.M :]
+
+    def make_state(self, robots: Sequence[int], objects: Sequence[int], grasps: Sequence[int]) -> State:
+        return tuple(robots) + tuple(objects) + tuple(grasps)
+
+    def team(self, s: State, j: int) -> tuple[int, ...]:
+        """Robots grasping object j in s (the paper's AG_j)."""
+        g = self.grasps_of(s)
+        return tuple(i for i in range(self.N) if g[i] == j)
+
+    def team_power_ok(self, team: Sequence[int], j: int) -> bool:
+        """Λ(j, ζ_A): the team is powerful enough to transport object j."""
+        return len(team) > 0 and sum(self.power[i] for i in team) >= self.required_power[j]
+
+    def covering_radius(self, j: int, team: tuple[int, ...]) -> float:
+        """r_A,j of object j grasped by ``team`` (r^o_j when the team is empty)."""
+        key = (j, team)
+        r = self._cover.get(key)
+        if r is None:
+            r = grasp_layout(self.object_radius[j], [self.robot_radius[i] for i in team], self.grasp_gap).covering_radius
+            self._cover[key] = r
+        return r
+
+    # ------------------------------------------------------------------ validity
+    def region_fits(self, k: int, radii: Sequence[float]) -> bool:
+        """P_{s,0} for region k with the layout spacing (cached on the sorted radii)."""
+        key = (k, tuple(sorted(radii, reverse=True)))
+        ok = self._fits.get(key)
+        if ok is None:
+            ok = entities_fit(self.region_radius[k], key[1], self.spacing)
+            self._fits[key] = ok
+        return ok
+
+    def region_entities(self, s: State) -> list[list[float]]:
+        """Radii of the entities in each region (free robots, ungrasped objects, teams)."""
+        N, M = self.N, self.M
+        R, O, G = s[:N], s[N : N + M], s[N + M :]
+        per: list[list[float]] = [[] for _ in range(self.K)]
+        teams: list[list[int]] = [[] for _ in range(M)]
+        for i in range(N):
+            if G[i] < 0:
+                per[R[i]].append(self.robot_radius[i])
+            else:
+                teams[G[i]].append(i)
+        for j in range(M):
+            per[O[j]].append(self.covering_radius(j, tuple(teams[j])) if teams[j] else self.object_radius[j])
+        return per
+
+    def is_valid(self, s: State) -> bool:
+        """Grasping robots co-located with their objects, and every region's entities fit (P_s)."""
+        ok = self._valid.get(s)
+        if ok is None:
+            ok = self._compute_valid(s)
+            self._valid[s] = ok
+        return ok
+
+    def _compute_valid(self, s: State) -> bool:
+        N, M, K = self.N, self.M, self.K
+        if len(s) != 2 * N + M:
+            return False
+        R, O, G = s[:N], s[N : N + M], s[N + M :]
+        if any(not 0 <= k < K for k in s[: N + M]) or any(not -1 <= g < M for g in G):
+            return False
+        if any(g >= 0 and R[i] != O[g] for i, g in enumerate(G)):
+            return False
+        return self._regions_fit(s)
+
+    def _regions_fit(self, s: State) -> bool:
+        """Every region's entities fit (P_s); assumes grasping robots are co-located."""
+        fits = self.region_fits
+        return all(not radii or fits(k, radii) for k, radii in enumerate(self.region_entities(s)))
+
+    # ------------------------------------------------------------------ labels and cost
+    def label_mask(self, s: State) -> int:
+        """L(s) as a bitmask over :attr:`propositions` (bit e·K + k: entity e is in region k)."""
+        m = self._label.get(s)
+        if m is None:
+            K = self.K
+            m = 0
+            for e, k in enumerate(s[: self.N + self.M]):
+                m |= 1 << (e * K + k)
+            self._label[s] = m
+        return m
+
+    def label(self, s: State) -> frozenset[str]:
+        """L(s): the true atomic propositions."""
+        K, names = self.K, self.robot_names + self.object_names
+        return frozenset(f"{names[e]}_{self.region_names[k]}" for e, k in enumerate(s[: self.N + self.M]))
+
+    def cost(self, s: State, t: State) -> float:
+        """χ(s, t): robots' region-centre travel distance plus c_grasp per grasp and release."""
+        N, M, d = self.N, self.M, self._dist
+        c = 0.0
+        for i in range(N):
+            if s[i] != t[i]:
+                c += d[s[i]][t[i]]
+            gs, gt = s[N + M + i], t[N + M + i]
+            if gs != gt:
+                c += self.grasp_cost
+        return c
+
+    # ------------------------------------------------------------------ transitions
+    def check_transition(self, s: State, t: State) -> str | None:
+        """Why s → t violates a TS rule (``None`` if it is a transition); derived from the rules only."""
+        N, M = self.N, self.M
+        if not self.is_valid(s):
+            return "source state is not valid"
+        if not self.is_valid(t):
+            return "target state is not valid (entities do not fit or a grasp is not co-located)"
+        R, O, G = s[:N], s[N : N + M], s[N + M :]
+        R2, O2, G2 = t[:N], t[N : N + M], t[N + M :]
+        for i in range(N):
+            if G[i] != G2[i]:
+                if G[i] >= 0 and G2[i] >= 0:
+                    return f"robot {self.robot_names[i]} switches objects in one step"
+                if R[i] != R2[i]:
+                    return f"robot {self.robot_names[i]} grasps/releases while moving"
+                j = G[i] if G[i] >= 0 else G2[i]
+                if O[j] != O2[j]:
+                    return f"object {self.object_names[j]} moves while robot {self.robot_names[i]} grasps/releases it"
+            elif G[i] >= 0:
+                j = G[i]
+                if (R[i] != R2[i]) != (O[j] != O2[j]) or R2[i] != O2[j]:
+                    return f"robot {self.robot_names[i]} grasping {self.object_names[j]} does not move with it"
+        for j in range(M):
+            if O[j] != O2[j]:
+                team = tuple(i for i in range(N) if G[i] == j)
+                team2 = tuple(i for i in range(N) if G2[i] == j)
+                if not team or team != team2:
+                    return f"object {self.object_names[j]} moves without the same non-empty team grasping it"
+                if not self.team_power_ok(team, j):
+                    return f"team {{{', '.join(self.robot_names[i] for i in team)}}} lacks the power to move {self.object_names[j]} (Λ)"
+        return None
+
+    def actions(self, s: State, t: State) -> tuple[Action, ...]:
+        """The actions of s → t (recovered from the two states; empty for the self-loop)."""
+        N, M = self.N, self.M
+        R, O, G = s[:N], s[N : N + M], s[N + M :]
+        R2, O2, G2 = t[:N], t[N : N + M], t[N + M :]
+        out: list[Action] = []
+        for j in range(M):
+            if O[j] != O2[j]:
+                out.append(Transport(j, tuple(i for i in range(N) if G[i] == j), O[j], O2[j]))
+        for i in range(N):
+            if G[i] != G2[i]:
+                out.append(Grasp(i, G2[i]) if G2[i] >= 0 else Release(i, G[i]))
+            elif G[i] < 0 and R[i] != R2[i]:
+                out.append(Navigate(i, R[i], R2[i]))
+        return tuple(out)
+
+    def _options(self, s: State) -> Iterator[tuple[tuple[int, ...], list[list[tuple[int, int]]]]]:
+        """The action rules as option lists: for every admissible combination of object destinations,
+        each robot's admissible (region', grasp') pairs.  Every product of the lists is a candidate
+        successor; it is a transition iff it is valid."""
+        N, M, K = self.N, self.M, self.K
+        R, O, G = s[:N], s[N : N + M], s[N + M :]
+        teams: list[list[int]] = [[] for _ in range(M)]
+        for i in range(N):
+            if G[i] >= 0:
+                teams[G[i]].append(i)
+        obj_opts = []
+        for j in range(M):
+            if teams[j] and self.team_power_ok(teams[j], j):
+                obj_opts.append([O[j]] + [k for k in range(K) if k != O[j]])
+            else:
+                obj_opts.append([O[j]])
+        for dests in itertools.product(*obj_opts):
+            robot_opts = []
+            for i in range(N):
+                g = G[i]
+                if g >= 0:
+                    if dests[g] != O[g]:
+                        robot_opts.append([(dests[g], g)])
+                    else:
+                        robot_opts.append([(R[i], g), (R[i], -1)])
+                else:
+                    opts = [(R[i], -1)] + [(k, -1) for k in range(K) if k != R[i]]
+                    opts += [(R[i], j) for j in range(M) if O[j] == R[i] and dests[j] == O[j]]
+                    robot_opts.append(opts)
+            yield dests, robot_opts
+
+    def successor_states(self, s: State) -> Iterator[State]:
+        """All s' with s → s' (implicit; never enumerates the whole TS)."""
+        valid = self.is_valid
+        for dests, robot_opts in self._options(s):
+            for choice in itertools.product(*robot_opts):
+                regions, grasps = zip(*choice)
+                t = regions + dests + grasps
+                if valid(t):
+                    yield t
+
+    def successors(self, s: State) -> Iterator[tuple[State, tuple[Action, ...], float]]:
+        """Implicit successor function: (next state, actions, cost χ) for every s → s'."""
+        for t in self.successor_states(s):
+            yield t, self.actions(s, t), self.cost(s, t)
+
+    # ------------------------------------------------------------------ explicit construction
+    def _radix(self) -> tuple[list[int], list[int], list[int]]:
+        """Mixed-radix weights of the integer state code used by :meth:`build`."""
+        N, M, K = self.N, self.M, self.K
+        w_r = [K**i for i in range(N)]
+        w_o = [K ** (N + j) for j in range(M)]
+        base = K ** (N + M)
+        w_g = [base * (M + 1) ** i for i in range(N)]
+        return w_r, w_o, w_g
+
+    def encode(self, s: State) -> int:
+        """Integer code of a state (mixed radix; grasp −1 ↦ digit 0)."""
+        w_r, w_o, w_g = self._radix()
+        N, M = self.N, self.M
+        return (sum(s[i] * w_r[i] for i in range(N)) + sum(s[N + j] * w_o[j] for j in range(M))
+                + sum((s[N + M + i] + 1) * w_g[i] for i in range(N)))
+
+    def decode(self, code: int) -> State:
+        """Inverse of :meth:`encode`."""
+        N, M, K = self.N, self.M, self.K
+        digits = []
+        for _ in range(N + M):
+            code, d = divmod(code, K)
+            digits.append(d)
+        for _ in range(N):
+            code, d = divmod(code, M + 1)
+            digits.append(d - 1)
+        return tuple(digits)
+
+    def build(self, max_states: int | None = None, progress=None) -> "ExplicitTS":
+        """Reachable TS from the initial state as a CSR graph (see :class:`ExplicitTS`).
+
+        Breadth-first over integer state codes: the successor codes of a state are the sums of
+        per-robot code deltas over the product of the option lists of :meth:`_options`, which
+        ``itertools.product``/``map(sum, ...)`` evaluate without per-transition Python code.
+        """
+        t0 = time.perf_counter()
+        N, M = self.N, self.M
+        w_r, w_o, w_g = self._radix()
+        init = self.encode(self.initial)
+        index = {init: 0}  # code -> state index, or -1 for an invalid code
+        states = [self.initial]
+        ends = [0]
+        targets = array.array("i")
+        decode, valid = self.decode, self._regions_fit  # candidates are co-located by construction
+        u = 0
+        while u < len(states):
+            s = states[u]
+            for dests, robot_opts in self._options(s):
+                base = sum(dests[j] * w_o[j] for j in range(M))
+                cand = [base]
+                for i in range(N):
+                    d = [r * w_r[i] + (g + 1) * w_g[i] for r, g in robot_opts[i]]
+                    cand = [a + b for a in cand for b in d] if len(d) > 1 else [a + d[0] for a in cand]
+                found = list(map(index.get, cand))
+                if None in found:
+                    for k, idx in enumerate(found):
+                        if idx is None:
+                            t = decode(cand[k])
+                            if valid(t):
+                                idx = len(states)
+                                if max_states is not None and idx >= max_states:
+                                    raise RuntimeError(f"more than {max_states} reachable states")
+                                states.append(t)
+                            else:
+                                idx = -1
+                            index[cand[k]] = found[k] = idx
+                targets.extend(found)
+            ends.append(len(targets))
+            u += 1
+            if progress is not None and u % 1000 == 0:
+                progress(u, len(states))
+        arr = np.array(states, dtype=np.int16).reshape(len(states), 2 * N + M)
+        tg = np.frombuffer(targets, dtype=np.int32) if len(targets) else np.zeros(0, np.int32)
+        keep = tg >= 0
+        kept = np.concatenate([[0], np.cumsum(keep, dtype=np.int64)])
+        ip = kept[np.array(ends, dtype=np.int64)]
+        tg = tg[keep]
+        src = np.repeat(np.arange(len(states), dtype=np.int32), np.diff(ip))
+        costs = self._edge_costs(arr, src, tg)
+        index_by_state = {s: k for k, s in enumerate(states)}
+        return ExplicitTS(self, arr, index_by_state, ip, tg, costs, time.perf_counter() - t0)
+
+    def _edge_costs(self, arr: np.ndarray, src: np.ndarray, dst: np.ndarray) -> np.ndarray:
+        N, M, K = self.N, self.M, self.K
+        flat = self.dist.ravel()
+        cols = np.ascontiguousarray(arr.T)
+        c = np.zeros(len(src))
+        for i in range(N):
+            r = cols[i]
+            c += flat[r[src] * K + r[dst]]
+            g = cols[N + M + i]
+            c += self.grasp_cost * (g[src] != g[dst])
+        return c
+
+    # ------------------------------------------------------------------ presentation
+    def state_dict(self, s: State) -> dict:
+        """A state by names: ``{"robots": {...}, "objects": {...}, "grasps": {...}}``."""
+        N, M = self.N, self.M
+        return {
+            "robots": {self.robot_names[i]: self.region_names[s[i]] for i in range(N)},
+            "objects": {self.object_names[j]: self.region_names[s[N + j]] for j in range(M)},
+            "grasps": {
+                self.robot_names[i]: (self.object_names[s[N + M + i]] if s[N + M + i] >= 0 else None)
+                for i in range(N)
+            },
+        }
+
+    def state_from_dict(self, d: dict) -> State:
+        """Inverse of :meth:`state_dict` (names must be known)."""
+        reg, obj = self._region_index, {o: j for j, o in enumerate(self.object_names)}
+        return self.make_state(
+            [reg[d["robots"][n]] for n in self.robot_names],
+            [reg[d["objects"][n]] for n in self.object_names],
+            [obj[d["grasps"][n]] if d["grasps"][n] is not None else -1 for n in self.robot_names],
+        )
+
+    def format_action(self, a: Action, style: str = "text") -> str:
+        """An action in the paper's Table I notation (``style='text'``) using 1-based numbers,
+        e.g. ``1 →g 2``, ``π4 →3 π1``, ``π1 →T_{1,3},2 π4``; ``style='names'`` uses scenario names."""
+        rn, on, gn = self.robot_names, self.object_names, self.region_names
+        if style == "names":
+            if isinstance(a, Navigate):
+                return f"navigate {rn[a.robot]} {gn[a.src]}->{gn[a.dst]}"
+            if isinstance(a, Grasp):
+                return f"grasp {rn[a.robot]} {on[a.obj]}"
+            if isinstance(a, Release):
+                return f"release {rn[a.robot]} {on[a.obj]}"
+            return f"transport {on[a.obj]} by {'+'.join(rn[i] for i in a.team)} {gn[a.src]}->{gn[a.dst]}"
+        if isinstance(a, Navigate):
+            return f"π{a.src + 1} →{a.robot + 1} π{a.dst + 1}"
+        if isinstance(a, Grasp):
+            return f"{a.robot + 1} →g {a.obj + 1}"
+        if isinstance(a, Release):
+            return f"{a.robot + 1} →r {a.obj + 1}"
+        team = ",".join(str(i + 1) for i in a.team)
+        return f"π{a.src + 1} →T_{{{team}}},{a.obj + 1} π{a.dst + 1}"
+
+
+@dataclass
+class ExplicitTS:
+    """Reachable part of TS as CSR arrays: successors of state ``u`` are
+    ``targets[indptr[u]:indptr[u+1]]`` with costs ``costs[...]``; ``states[u]`` is the state tuple."""
+
+    ts: TransitionSystem
+    states: np.ndarray
+    index: dict
+    indptr: np.ndarray
+    targets: np.ndarray
+    costs: np.ndarray
+    build_seconds: float
+
+    @property
+    def num_states(self) -> int:
+        return len(self.states)
+
+    @property
+    def num_transitions(self) -> int:
+        return len(self.targets)
+
+    def state(self, u: int) -> State:
+        return tuple(int(x) for x in self.states[u])
+
+    def successors(self, u: int) -> np.ndarray:
+        return self.targets[self.indptr[u] : self.indptr[u + 1]]
+
+    def label_masks(self) -> np.ndarray:
+        """L(s) bitmask for every state (Python ints may exceed 64 bits: object array)."""
+        return np.array([self.ts.label_mask(self.state(u)) for u in range(self.num_states)], dtype=object)
+
+    def to_networkx(self):
+        """A networkx DiGraph with ``state``, ``label`` node attributes and ``cost``, ``actions`` edges."""
+        import networkx as nx
+
+        g = nx.DiGraph()
+        for u in range(self.num_states):
+            s = self.state(u)
+            g.add_node(u, state=s, label=sorted(self.ts.label(s)))
+        for u in range(self.num_states):
+            s = self.state(u)
+            for e in range(self.indptr[u], self.indptr[u + 1]):
+                v = int(self.targets[e])
+                g.add_edge(u, v, cost=float(self.costs[e]), actions=self.ts.actions(s, self.state(v)))
+        return g
+
+    def summary(self) -> dict:
+        return {
+            "scenario": self.ts.scenario.name,
+            "states": self.num_states,
+            "transitions": self.num_transitions,
+            "build_seconds": round(self.build_seconds, 4),
+        }
+

@@ -1,0 +1,316 @@
+"""Transition system (paper Def. 4): rules against an independent oracle, implicit vs explicit, labels, costs."""
+
+from __future__ import annotations
+
+import itertools
+import math
+from collections import deque
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, assume, given, settings
+from hypothesis import strategies as st
+
+from mrodrake.errors import UserError
+from mrodrake.geometry import grasp_layout
+from mrodrake.packing import verify_packing
+from mrodrake.scenario import entities_fit, load_scenario, scenario_from_dict
+from mrodrake.ts import Grasp, Navigate, Release, TransitionSystem, Transport
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+@pytest.fixture(scope="module")
+def tiny():
+    return TransitionSystem(load_scenario(ROOT / "scenarios" / "tiny.yaml"))
+
+
+@pytest.fixture(scope="module")
+def case1():
+    return TransitionSystem(load_scenario(ROOT / "scenarios" / "case_study_1.yaml"))
+
+
+# ---------------------------------------------------------------------------------------------- oracle
+def oracle_valid(ts: TransitionSystem, s) -> bool:
+    """Validity written directly from the issue: grasps co-located, each region's entities fit."""
+    N, M = ts.N, ts.M
+    R, O, G = s[:N], s[N : N + M], s[N + M :]
+    if any(g >= 0 and R[i] != O[g] for i, g in enumerate(G)):
+        return False
+    sc = ts.scenario
+    for k in range(ts.K):
+        radii = [sc.robots[i].radius for i in range(N) if R[i] == k and G[i] < 0]
+        for j in range(M):
+            if O[j] == k:
+                team = [sc.robots[i].radius for i in range(N) if G[i] == j]
+                radii.append(grasp_layout(sc.objects[j].radius, team, sc.layout.grasp_gap).covering_radius
+                             if team else sc.objects[j].radius)
+        if radii and not entities_fit(sc.regions[k].radius, radii, sc.layout.spacing):
+            return False
+    return True
+
+
+def oracle_transition(ts: TransitionSystem, s, t) -> bool:
+    """The transition rules of the issue, one by one, independent of the implementation."""
+    if not (oracle_valid(ts, s) and oracle_valid(ts, t)):
+        return False
+    N, M = ts.N, ts.M
+    R, O, G = s[:N], s[N : N + M], s[N + M :]
+    R2, O2, G2 = t[:N], t[N : N + M], t[N + M :]
+    for i in range(N):
+        a, b = G[i], G2[i]
+        if a < 0 and b < 0:
+            continue  # free robot: stays or navigates anywhere
+        if a < 0 <= b:  # grasp
+            if not (R[i] == O[b] and R2[i] == R[i] and O2[b] == O[b]):
+                return False
+        elif b < 0 <= a:  # release
+            if not (R2[i] == R[i] and O2[a] == O[a]):
+                return False
+        else:
+            if a != b:
+                return False  # never switch objects in one step
+            if (R2[i] != R[i]) != (O2[a] != O[a]) or R2[i] != O2[a]:
+                return False
+    for j in range(M):
+        if O2[j] != O[j]:
+            team = {i for i in range(N) if G[i] == j}
+            team2 = {i for i in range(N) if G2[i] == j}
+            if not team or team != team2:
+                return False
+            if sum(ts.scenario.robots[i].power for i in team) < ts.scenario.objects[j].required_power:
+                return False
+    return True
+
+
+def all_states(ts: TransitionSystem):
+    for r in itertools.product(range(ts.K), repeat=ts.N):
+        for o in itertools.product(range(ts.K), repeat=ts.M):
+            for g in itertools.product(range(-1, ts.M), repeat=ts.N):
+                yield r + o + g
+
+
+def random_scenario(n, m, k, region_radius, robot_radii, object_radii, powers, required, gap):
+    regions = [{"name": f"p{q + 1}", "center": [10.0 + 20.0 * q, 10.0], "radius": region_radius}
+               for q in range(k)]
+    robots = [{"name": f"r{i + 1}", "mass": 1.0, "radius": robot_radii[i], "power": powers[i],
+               "initial_region": f"p{i % k + 1}"} for i in range(n)]
+    objects = [{"name": f"o{j + 1}", "mass": 0.3, "radius": object_radii[j], "required_power": required[j],
+                "initial_region": f"p{(j + 1) % k + 1}"} for j in range(m)]
+    data = {
+        "name": "random",
+        "workspace": {"boundary": [[0.0, 0.0], [20.0 * k, 0.0], [20.0 * k, 20.0], [0.0, 20.0]]},
+        "regions": regions, "robots": robots, "objects": objects,
+        "task": {"formula": "G F r1_p1"},
+        "layout": {"grasp_gap": gap, "spacing": 0.1},
+    }
+    return scenario_from_dict(data)
+
+
+scenarios = st.builds(
+    lambda n, m, k, rr, data: (n, m, k, rr, data),
+    st.integers(1, 3), st.integers(0, 2), st.integers(1, 3), st.floats(1.0, 3.5), st.data(),
+)
+
+
+@settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(scenarios)
+def test_successors_match_oracle(params):
+    n, m, k, rr, data = params
+    robot_radii = data.draw(st.lists(st.floats(0.3, 0.9), min_size=n, max_size=n))
+    object_radii = data.draw(st.lists(st.floats(0.1, 0.5), min_size=m, max_size=m))
+    powers = data.draw(st.lists(st.integers(1, 4), min_size=n, max_size=n))
+    required = data.draw(st.lists(st.integers(1, 8), min_size=m, max_size=m))
+    gap = data.draw(st.floats(0.0, 0.3))
+    try:
+        sc = random_scenario(n, m, k, rr, robot_radii, object_radii, powers, required, gap)
+    except UserError:
+        assume(False)
+    ts = TransitionSystem(sc)
+    universe = list(all_states(ts))
+    valid = [s for s in universe if oracle_valid(ts, s)]
+    sources = data.draw(st.lists(st.sampled_from(valid), min_size=1, max_size=4, unique=True))
+    for s in sources:
+        assert ts.is_valid(s)
+        expected = {t for t in universe if oracle_transition(ts, s, t)}
+        got = list(ts.successor_states(s))
+        assert len(got) == len(set(got)), "duplicate successors"
+        assert set(got) == expected
+        for t in got:
+            assert ts.check_transition(s, t) is None
+        for t in set(universe) - expected:
+            assert ts.check_transition(s, t) is not None
+
+
+# ---------------------------------------------------------------------------------------------- rules
+def test_each_rule_violation_is_absent(tiny):
+    ts = tiny  # r1 (power 2) in p1 with o1 (needs 4); r2 (power 3) in p2.  p1=0, p2=1, p3=2.
+    s0 = ts.initial
+    assert s0 == (0, 1, 0, -1, -1)
+    succ = set(ts.successor_states(s0))
+    cases = {
+        "grasp an object in another region": (0, 1, 0, -1, 0),
+        "grasp while navigating": (1, 1, 0, 0, -1),
+        "object moves without a team": (0, 1, 2, -1, -1),
+    }
+    for why, t in cases.items():
+        assert t not in succ, why
+        assert ts.check_transition(s0, t) is not None, why
+    s1 = (0, 1, 0, 0, -1)  # r1 grasps o1 in p1
+    assert s1 in succ
+    succ1 = set(ts.successor_states(s1))
+    for why, t in {
+        "team lacks power (2 < 4)": (2, 1, 2, 0, -1),
+        "grasping robot navigates without its object": (1, 1, 0, 0, -1),
+        "release while navigating": (1, 1, 0, -1, -1),
+    }.items():
+        assert t not in succ1, why
+        assert ts.check_transition(s1, t) is not None, why
+    s2 = (0, 0, 0, 0, 0)  # both grasp o1 in p1: power 5 >= 4
+    assert ts.is_valid(s2)
+    succ2 = set(ts.successor_states(s2))
+    assert (2, 2, 2, 0, 0) in succ2  # transport p1 -> p3 by {r1, r2}
+    for why, t in {
+        "team changes while transporting": (2, 0, 2, 0, -1),
+        "release while transporting": (2, 2, 2, 0, -1),
+        "member stays behind": (0, 2, 2, 0, 0),
+        "members go to different regions": (2, 1, 2, 0, 0),
+    }.items():
+        assert t not in succ2, why
+        assert ts.check_transition(s2, t) is not None, why
+    assert ts.actions(s2, (2, 2, 2, 0, 0)) == (Transport(0, (0, 1), 0, 2),)
+    s3 = (0, 0, 0, 0, -1)
+    assert (0, 0, 1, 0, 0) not in set(ts.successor_states(s3)), "grasp while the object moves"
+    assert (0, 0, 0, -1, 0) in set(ts.successor_states(s3)), "simultaneous release and grasp of one object"
+
+
+def test_switching_objects_is_absent():
+    sc = random_scenario(1, 2, 1, 3.0, [0.5], [0.2, 0.2], [5], [1, 1], 0.1)
+    ts = TransitionSystem(sc)
+    s = (0, 0, 0, 0)
+    t = (0, 0, 0, 1)
+    assert ts.is_valid(s) and ts.is_valid(t)
+    assert t not in set(ts.successor_states(s))
+    assert "switches" in ts.check_transition(s, t)
+
+
+def test_packing_limits_states():
+    sc = random_scenario(3, 0, 2, 1.7, [0.75, 0.75, 0.75], [], [1, 1, 1], [], 0.1)
+    ts = TransitionSystem(sc)
+    free = (-1, -1, -1)
+    assert not ts.is_valid((0, 0, 0) + free)  # three 0.75 m robots do not fit in a 1.7 m region
+    assert ts.is_valid((0, 0, 1) + free)  # two do: 2 (0.75 + 0.05) <= 1.7 - 0.05
+    ets = ts.build()
+    assert ets.num_states == 6  # the 2^3 placements minus the two with all three together
+    for u in range(ets.num_states):
+        assert len(set(ets.state(u)[:3])) > 1
+
+
+def test_self_loop_and_actions(tiny):
+    s = tiny.initial
+    out = {t: (a, c) for t, a, c in tiny.successors(s)}
+    assert out[s] == ((), 0.0)
+    acts, cost = out[(2, 1, 0, -1, -1)]
+    assert acts == (Navigate(0, 0, 2),)
+    assert cost == pytest.approx(math.dist((6, 6), (33, 22)))
+    acts, cost = out[(0, 1, 0, 0, -1)]
+    assert acts == (Grasp(0, 0),) and cost == pytest.approx(1.0)
+    assert tiny.actions((0, 0, 0, 0, 0), (0, 0, 0, -1, 0)) == (Release(0, 0),)
+
+
+# ---------------------------------------------------------------------------------------------- labels, costs
+def test_labels(case1):
+    ts = case1
+    s = ts.initial
+    assert ts.label(s) == {"r1_p1", "r2_p3", "r3_p4", "o1_p2", "o2_p1"}
+    mask = ts.label_mask(s)
+    assert {p for b, p in enumerate(ts.propositions) if mask >> b & 1} == ts.label(s)
+    assert len(ts.propositions) == (3 + 2) * 4
+
+
+def test_costs(case1):
+    ts = case1
+    ets = ts.build()
+    rng = np.random.default_rng(0)
+    for e in rng.integers(0, ets.num_transitions, size=300):
+        u = int(np.searchsorted(ets.indptr, e, side="right") - 1)
+        s, t = ets.state(u), ets.state(int(ets.targets[e]))
+        R, R2 = s[: ts.N], t[: ts.N]
+        G, G2 = s[ts.N + ts.M :], t[ts.N + ts.M :]
+        centers = [g.center for g in ts.scenario.regions]
+        expect = sum(math.dist(centers[a], centers[b]) for a, b in zip(R, R2))
+        expect += ts.scenario.planning.grasp_cost * sum(a != b for a, b in zip(G, G2))
+        assert ets.costs[e] == pytest.approx(expect)
+        assert ts.cost(s, t) == pytest.approx(expect)
+
+
+# ---------------------------------------------------------------------------------------------- explicit TS
+def implicit_reachable(ts: TransitionSystem) -> tuple[set, int]:
+    seen = {ts.initial}
+    queue = deque([ts.initial])
+    edges = 0
+    while queue:
+        s = queue.popleft()
+        for t in ts.successor_states(s):
+            edges += 1
+            if t not in seen:
+                seen.add(t)
+                queue.append(t)
+    return seen, edges
+
+
+@pytest.mark.parametrize("name", ["tiny", "case_study_1", "case_study_2"])
+def test_implicit_and_explicit_agree(name):
+    ts = TransitionSystem(load_scenario(ROOT / "scenarios" / f"{name}.yaml"))
+    ets = ts.build()
+    seen, edges = implicit_reachable(ts)
+    assert {ets.state(u) for u in range(ets.num_states)} == seen
+    assert ets.num_transitions == edges
+    rng = np.random.default_rng(1)
+    for u in rng.integers(0, ets.num_states, size=50):
+        s = ets.state(int(u))
+        assert {ets.state(int(v)) for v in ets.successors(int(u))} == set(ts.successor_states(s))
+
+
+def test_closed_form_state_count():
+    """With roomy regions and strong robots every state is reachable: Σ_{R,O} Π_i (1 + #objects with i)."""
+    n, m, k = 3, 2, 3
+    sc = random_scenario(n, m, k, 6.0, [0.5] * n, [0.2] * m, [10] * n, [1] * m, 0.1)
+    ts = TransitionSystem(sc)
+    expect = 0
+    for r in itertools.product(range(k), repeat=n):
+        for o in itertools.product(range(k), repeat=m):
+            expect += math.prod(1 + sum(oj == ri for oj in o) for ri in r)
+    assert ts.build().num_states == expect
+
+
+def test_encode_decode_roundtrip(case1):
+    for s in itertools.islice(all_states(case1), 0, None, 97):
+        assert case1.decode(case1.encode(s)) == s
+
+
+def test_state_dict_roundtrip(case1):
+    s = (0, 0, 2, 0, 0, 1, -1, 0)
+    d = case1.state_dict(s)
+    assert d == {"robots": {"r1": "p1", "r2": "p1", "r3": "p3"}, "objects": {"o1": "p1", "o2": "p1"},
+                 "grasps": {"r1": "o2", "r2": None, "r3": "o1"}}
+    assert case1.state_from_dict(d) == s
+
+
+def test_table_notation(case1):
+    f = case1.format_action
+    assert f(Grasp(0, 1)) == "1 →g 2"
+    assert f(Navigate(2, 3, 0)) == "π4 →3 π1"
+    assert f(Transport(1, (0, 2), 0, 3)) == "π1 →T_{1,3},2 π4"
+    assert f(Release(1, 0)) == "2 →r 1"
+
+
+def test_covering_radius_contains_team():
+    for n in range(1, 6):
+        lay = grasp_layout(0.2, [0.75] * n, 0.1)
+        centres = np.vstack([[0.0, 0.0], lay.offsets])
+        radii = [0.2] + [0.75] * n
+        assert verify_packing(lay.covering_radius + 1e-9, centres, radii)
+        gaps = np.linalg.norm(lay.offsets, axis=1) - 0.2 - 0.75
+        assert np.all(gaps >= 0.1 - 1e-12)
