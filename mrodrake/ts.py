@@ -268,7 +268,7 @@ class TransitionSystem:
                 out.append(Navigate(i, R[i], R2[i]))
         return tuple(out)
 
-    def _options(self, s: State) -> Iterator[tuple[tuple[int, ...], list[list[tuple[int, int]]]]]:
+    def options(self, s: State) -> Iterator[tuple[tuple[int, ...], list[list[tuple[int, int]]]]]:
         """The action rules as option lists: for every admissible combination of object destinations,
         each robot's admissible (region', grasp') pairs.  Every product of the lists is a candidate
         successor; it is a transition iff it is valid."""
@@ -302,7 +302,7 @@ class TransitionSystem:
     def successor_states(self, s: State) -> Iterator[State]:
         """All s' with s → s' (implicit; never enumerates the whole TS)."""
         valid = self.is_valid
-        for dests, robot_opts in self._options(s):
+        for dests, robot_opts in self.options(s):
             for choice in itertools.product(*robot_opts):
                 regions, grasps = zip(*choice)
                 t = regions + dests + grasps
@@ -347,7 +347,7 @@ class TransitionSystem:
         """Reachable TS from the initial state as a CSR graph (see :class:`ExplicitTS`).
 
         Breadth-first over integer state codes: the successor codes of a state are the sums of
-        per-robot code deltas over the product of the option lists of :meth:`_options`, which
+        per-robot code deltas over the product of the option lists of :meth:`options`, which
         ``itertools.product``/``map(sum, ...)`` evaluate without per-transition Python code.
         """
         t0 = time.perf_counter()
@@ -362,7 +362,7 @@ class TransitionSystem:
         u = 0
         while u < len(states):
             s = states[u]
-            for dests, robot_opts in self._options(s):
+            for dests, robot_opts in self.options(s):
                 base = sum(dests[j] * w_o[j] for j in range(M))
                 cand = [base]
                 for i in range(N):
