@@ -104,6 +104,7 @@ class TransitionSystem:
         self._fits: dict[tuple[int, tuple[float, ...]], bool] = {}
         self._valid: dict[State, bool] = {}
         self._label: dict[State, int] = {}
+        self._pairs: dict[tuple, list[tuple[int, int]]] = {}
         self.initial = tuple(
             [self._region_index[r.initial_region] for r in scenario.robots]
             + [self._region_index[o.initial_region] for o in scenario.objects]
@@ -268,10 +269,15 @@ class TransitionSystem:
                 out.append(Navigate(i, R[i], R2[i]))
         return tuple(out)
 
-    def options(self, s: State) -> Iterator[tuple[tuple[int, ...], list[list[tuple[int, int]]]]]:
-        """The action rules as option lists: for every admissible combination of object destinations,
-        each robot's admissible (region', grasp') pairs.  Every product of the lists is a candidate
-        successor; it is a transition iff it is valid."""
+    def option_keys(self, s: State) -> Iterator[tuple[tuple[int, ...], list[tuple]]]:
+        """The action rules: for every admissible combination of object destinations, one key per robot
+        naming its admissible (region', grasp') choices (see :meth:`option_pairs`):
+
+        * ``(region, -1, graspable)`` free robot: stay, navigate anywhere, or grasp a co-located object
+          in ``graspable`` (objects that do not move in this step);
+        * ``(region, j, None)`` robot grasping j while j stays: keep grasping or release;
+        * ``(region', j, True)`` robot grasping j while j moves to region' with the team.
+        """
         N, M, K = self.N, self.M, self.K
         R, O, G = s[:N], s[N : N + M], s[N + M :]
         teams: list[list[int]] = [[] for _ in range(M)]
@@ -285,19 +291,37 @@ class TransitionSystem:
             else:
                 obj_opts.append([O[j]])
         for dests in itertools.product(*obj_opts):
-            robot_opts = []
+            keys = []
             for i in range(N):
                 g = G[i]
                 if g >= 0:
-                    if dests[g] != O[g]:
-                        robot_opts.append([(dests[g], g)])
-                    else:
-                        robot_opts.append([(R[i], g), (R[i], -1)])
+                    keys.append((dests[g], g, True) if dests[g] != O[g] else (R[i], g, None))
                 else:
-                    opts = [(R[i], -1)] + [(k, -1) for k in range(K) if k != R[i]]
-                    opts += [(R[i], j) for j in range(M) if O[j] == R[i] and dests[j] == O[j]]
-                    robot_opts.append(opts)
-            yield dests, robot_opts
+                    r = R[i]
+                    keys.append((r, -1, tuple(j for j in range(M) if O[j] == r and dests[j] == r)))
+            yield dests, keys
+
+    def option_pairs(self, key: tuple) -> list[tuple[int, int]]:
+        """The admissible (region', grasp') pairs of an option key (cached)."""
+        pairs = self._pairs.get(key)
+        if pairs is None:
+            r, g, extra = key
+            if g < 0:
+                pairs = [(r, -1)] + [(k, -1) for k in range(self.K) if k != r] + [(r, j) for j in extra]
+            elif extra is None:
+                pairs = [(r, g), (r, -1)]
+            else:
+                pairs = [(r, g)]
+            self._pairs[key] = pairs
+        return pairs
+
+    def options(self, s: State) -> Iterator[tuple[tuple[int, ...], list[list[tuple[int, int]]]]]:
+        """The action rules as option lists: for every admissible combination of object destinations,
+        each robot's admissible (region', grasp') pairs.  Every product of the lists is a candidate
+        successor; it is a transition iff it is valid."""
+        pairs = self.option_pairs
+        for dests, keys in self.option_keys(s):
+            yield dests, [pairs(k) for k in keys]
 
     def successor_states(self, s: State) -> Iterator[State]:
         """All s' with s → s' (implicit; never enumerates the whole TS)."""
@@ -346,9 +370,9 @@ class TransitionSystem:
     def build(self, max_states: int | None = None, progress=None) -> "ExplicitTS":
         """Reachable TS from the initial state as a CSR graph (see :class:`ExplicitTS`).
 
-        Breadth-first over integer state codes: the successor codes of a state are the sums of
-        per-robot code deltas over the product of the option lists of :meth:`options`, which
-        ``itertools.product``/``map(sum, ...)`` evaluate without per-transition Python code.
+        Breadth-first over integer state codes (:meth:`encode`): the successor codes of a state are the
+        sums of per-robot code deltas over the product of its option lists (:meth:`option_keys`), so no
+        state tuple is built per transition; only codes never seen before are decoded and checked.
         """
         t0 = time.perf_counter()
         N, M = self.N, self.M
@@ -359,14 +383,16 @@ class TransitionSystem:
         ends = [0]
         targets = array.array("i")
         decode, valid = self.decode, self._regions_fit  # candidates are co-located by construction
+        deltas: dict[tuple, list[int]] = {}
         u = 0
         while u < len(states):
             s = states[u]
-            for dests, robot_opts in self.options(s):
-                base = sum(dests[j] * w_o[j] for j in range(M))
-                cand = [base]
+            for dests, keys in self.option_keys(s):
+                cand = [sum(dests[j] * w_o[j] for j in range(M))]
                 for i in range(N):
-                    d = [r * w_r[i] + (g + 1) * w_g[i] for r, g in robot_opts[i]]
+                    d = deltas.get((i, keys[i]))
+                    if d is None:
+                        d = deltas[(i, keys[i])] = [r * w_r[i] + (g + 1) * w_g[i] for r, g in self.option_pairs(keys[i])]
                     cand = [a + b for a in cand for b in d] if len(d) > 1 else [a + d[0] for a in cand]
                 found = list(map(index.get, cand))
                 if None in found:

@@ -314,3 +314,25 @@ def test_covering_radius_contains_team():
         assert verify_packing(lay.covering_radius + 1e-9, centres, radii)
         gaps = np.linalg.norm(lay.offsets, axis=1) - 0.2 - 0.75
         assert np.all(gaps >= 0.1 - 1e-12)
+
+
+def test_cli_ts_json_matches_build():
+    import json
+    import subprocess
+    import sys
+
+    out = subprocess.run([sys.executable, "-m", "mrodrake", "ts", "--json", str(ROOT / "scenarios" / "tiny.yaml")],
+                         capture_output=True, text=True, check=True, timeout=120)
+    data = json.loads(out.stdout)
+    ts = TransitionSystem(load_scenario(ROOT / "scenarios" / "tiny.yaml"))
+    ets = ts.build()
+    assert len(data["states"]) == ets.num_states and len(data["transitions"]) == ets.num_transitions
+    states = [ts.state_from_dict(d) for d in data["states"]]
+    assert states[0] == ts.initial
+    for d, s in zip(data["states"], states):
+        assert set(d["label"]) == ts.label(s)
+    for tr in data["transitions"][::7]:
+        s, t = states[tr["src"]], states[tr["dst"]]
+        assert ts.check_transition(s, t) is None
+        assert tr["cost"] == pytest.approx(ts.cost(s, t), abs=1e-6)
+        assert tr["actions"] == [ts.format_action(a, "names") for a in ts.actions(s, t)]
