@@ -16,7 +16,7 @@ The search runs in three stages, all on the problem scaled to R = 1:
    equal circles and the Folkman-Graham inequality applied to the k largest disks;
 2. greedy constructive placement, largest first, on candidate positions tangent to two of
    {container, placed disks}, chosen by hole degree or by closeness to the rim;
-3. penalty-energy minimisation (overlap + protrusion, L-BFGS-B) from seeded random starts.
+3. penalty-energy minimisation (overlap + protrusion, L-BFGS) from seeded random starts.
 
 Every random choice uses ``numpy.random.default_rng(seed)``; results are deterministic.
 """
@@ -38,6 +38,7 @@ _OPT_EXTRA = 1e-6
 _TOL = 1e-12
 _RESTARTS = 8
 _LBFGS_ITERS = 400
+_LBFGS_MEMORY = 10
 _SPREAD_ITERS = 40
 _SPREAD_STARTS = 4
 _RIM_ANGLES = 12
@@ -238,9 +239,53 @@ def _energy(x: np.ndarray, r: np.ndarray, rho: float, fc: np.ndarray, fr: np.nda
 
 
 def _relax(start: np.ndarray, r: np.ndarray, rho: float, fc: np.ndarray, fr: np.ndarray) -> np.ndarray:
-    res = minimize(_energy, start.reshape(-1), args=(r, rho, fc, fr), jac=True, method="L-BFGS-B",
-                   options={"maxiter": _LBFGS_ITERS, "ftol": 0.0, "gtol": 1e-13, "maxcor": 20})
-    return res.x.reshape(-1, 2)
+    """Minimise the penalty energy from ``start`` with a small L-BFGS (two-loop recursion, Armijo
+    backtracking).  Own implementation: scipy's L-BFGS-B calls multithreaded BLAS on these tiny
+    problems and was measured 60-100x slower on a loaded 2-core machine."""
+    x = start.reshape(-1).copy()
+    f, g = _energy(x, r, rho, fc, fr)
+    S: list[np.ndarray] = []
+    Y: list[np.ndarray] = []
+    for _ in range(_LBFGS_ITERS):
+        if f == 0.0 or float(np.max(np.abs(g))) <= 1e-13:
+            break
+        q = g.copy()
+        alphas = []
+        for s, y in zip(reversed(S), reversed(Y)):
+            a = float(s @ q) / float(y @ s)
+            alphas.append(a)
+            q -= a * y
+        if S:
+            q *= float(S[-1] @ Y[-1]) / float(Y[-1] @ Y[-1])
+        for (s, y), a in zip(zip(S, Y), reversed(alphas)):
+            q += s * (a - float(y @ q) / float(y @ s))
+        d = -q
+        slope = float(g @ d)
+        if slope >= 0.0:
+            d, slope = -g, -float(g @ g)
+            S.clear()
+            Y.clear()
+        t = 1.0
+        while True:
+            xn = x + t * d
+            fn, gn = _energy(xn, r, rho, fc, fr)
+            if fn <= f + 1e-4 * t * slope:
+                break
+            t *= 0.5
+            if t < 1e-10:
+                return x.reshape(-1, 2)
+        s, y = xn - x, gn - g
+        if float(s @ y) > 1e-18:
+            S.append(s)
+            Y.append(y)
+            if len(S) > _LBFGS_MEMORY:
+                S.pop(0)
+                Y.pop(0)
+        stalled = f - fn <= 1e-9 * f
+        x, f, g = xn, fn, gn
+        if stalled:
+            break
+    return x.reshape(-1, 2)
 
 
 def _random_start(rng: np.random.Generator, r: np.ndarray, rho: float) -> np.ndarray:
@@ -326,7 +371,8 @@ fits.cache_clear = _pack_sorted.cache_clear  # type: ignore[attr-defined]
 
 def _spread(c: np.ndarray, r: np.ndarray, fc: np.ndarray, fr: np.ndarray) -> np.ndarray:
     """Increase the minimum gap t of the new disks (pairwise, to fixed disks, to the unit rim) with a
-    few SLSQP steps on max t s.t. every gap >= t; returns the improved centres (unverified)."""
+    few SLSQP steps on max t s.t. every gap >= t (rim gaps in the smooth form
+    (1 - r_i - t)^2 >= |c_i|^2, 1 - r_i - t >= 0); returns the improved centres (unverified)."""
     n, m = len(r), len(fr)
     ii, jj = np.triu_indices(n, 1)
     fi, fj = np.repeat(np.arange(n), m), np.tile(np.arange(m), n)
@@ -336,12 +382,12 @@ def _spread(c: np.ndarray, r: np.ndarray, fc: np.ndarray, fr: np.ndarray) -> np.
         c, t = z[:-1].reshape(-1, 2), z[-1]
         dp = np.hypot(*(c[ii] - c[jj]).T) - r[ii] - r[jj] - t
         df = np.hypot(*(c[fi] - fc[fj]).T) - r[fi] - fr[fj] - t
-        db = 1.0 - np.sqrt(np.einsum("ij,ij->i", c, c) + 1e-18) - r - t
-        return np.concatenate([dp, df, db])
+        room = 1.0 - r - t
+        return np.concatenate([dp, df, room * room - np.einsum("ij,ij->i", c, c), room])
 
     def jac(z: np.ndarray) -> np.ndarray:
-        c = z[:-1].reshape(-1, 2)
-        J = np.zeros((npair + nfix + n, 2 * n + 1))
+        c, t = z[:-1].reshape(-1, 2), z[-1]
+        J = np.zeros((npair + nfix + 2 * n, 2 * n + 1))
         J[:, -1] = -1.0
         U = c[ii] - c[jj]
         U /= np.maximum(np.hypot(*U.T), 1e-15)[:, None]
@@ -354,10 +400,10 @@ def _spread(c: np.ndarray, r: np.ndarray, fc: np.ndarray, fr: np.ndarray) -> np.
         rows = npair + np.arange(nfix)
         for k in range(2):
             J[rows, 2 * fi + k] = V[:, k]
-        W = c / np.sqrt(np.einsum("ij,ij->i", c, c) + 1e-18)[:, None]
         rows = npair + nfix + np.arange(n)
         for k in range(2):
-            J[rows, 2 * np.arange(n) + k] = -W[:, k]
+            J[rows, 2 * np.arange(n) + k] = -2.0 * c[:, k]
+        J[rows, -1] = -2.0 * (1.0 - r - t)
         return J
 
     z0 = np.concatenate([c.reshape(-1), [_min_gap(c, r, fc, fr)]])
@@ -380,7 +426,9 @@ def place(region_radius: float, fixed_centres: np.ndarray, fixed_radii: Sequence
     R = _check_radius(region_radius, "region_radius")
     fr = _check_radii(fixed_radii, "fixed_radii")
     r = _check_radii(new_radii, "new_radii")
-    fc = np.asarray(fixed_centres, dtype=float).reshape(-1, 2) if len(fr) else np.empty((0, 2))
+    fc = np.asarray(fixed_centres, dtype=float)
+    if fc.size == 0:
+        fc = fc.reshape(0, 2)
     if fc.shape != (len(fr), 2) or not np.all(np.isfinite(fc)):
         raise ValueError(f"fixed_centres must be a finite array of shape ({len(fr)}, 2)")
     g = float(margin)
@@ -410,3 +458,38 @@ def place(region_radius: float, fixed_centres: np.ndarray, fixed_radii: Sequence
     out = np.empty((len(r), 2))
     out[order] = sol
     return out
+
+
+def benchmark(repeats: int = 5) -> list[tuple[str, float, float]]:
+    """Time uncached P_s decisions and one typical place() for ``mrodrake bench``: rows (case, median
+    ms, max ms) over ``repeats`` runs, the cache cleared before every decision."""
+    import itertools
+    import time
+
+    typical = [list(t) + [0.75] * nr + [0.2] * no
+               for k in range(3) for t in itertools.combinations_with_replacement((1.7, 1.8, 1.9), k)
+               for nr in range(5) for no in range(4) if k + nr + no > 0]
+    cases = [
+        ("typical R=4 (all %d multisets)" % len(typical), [(4.0, t) for t in typical]),
+        ("10 equal, R/r = 1.02 x 3.8130", [(3.8130 * 1.02, [1.0] * 10)]),
+        ("10 equal, R/r = 0.99 x 3.8130", [(3.8130 * 0.99, [1.0] * 10)]),
+        ("14 equal, R/r = 0.99 x 4.3284 (search exhausts)", [(4.3284 * 0.99, [1.0] * 14)]),
+    ]
+    rows = []
+    fc = np.array([[2.1, 0.0], [-2.1, 0.0]])
+    times = []
+    for seed in range(repeats):
+        t0 = time.perf_counter()
+        place(4.0, fc, [1.85, 1.85], [0.75, 0.75, 0.2], seed=seed, margin=0.05)
+        times.append(time.perf_counter() - t0)
+    rows.append(("place 3 new next to 2 fixed, margin 0.05", 1e3 * float(np.median(times)), 1e3 * max(times)))
+    for name, calls in cases:
+        times = []
+        for _ in range(repeats):
+            for R, radii in calls:
+                _pack_sorted.cache_clear()
+                t0 = time.perf_counter()
+                fits(R, radii)
+                times.append(time.perf_counter() - t0)
+        rows.append((name, 1e3 * float(np.median(times)), 1e3 * float(np.max(times))))
+    return rows
