@@ -1,0 +1,155 @@
+"""2nd-order navigation function in the point world (paper Sec. III-A: Def. 2nd-order NF, eq. (beta_exps),
+Proposition 1, eq. (v_d)).
+
+φ(χ) = k1‖χ − χ_d‖² + k2 Σ_{ℓ∈J̄0} (β(d_ℓ(χ)) − β(τ)),  d_ℓ = ‖χ − b_ℓ‖² (ℓ ≥ 1), d_0 = 1 − ‖χ‖².
+
+β is the polynomial barrier of eq. (beta_exps) with its region of influence scaled to τ:
+β(x) = 1 / P(x/τ), P(s) = 6s⁵ − 15s⁴ + 10s³, for x < τ and β(x) = 1 for x ≥ τ.  The constant β(τ) = 1 is
+subtracted in φ so that φ(χ_d) = 0 (property 2 of the definition); this shifts φ only, ∇φ is unchanged.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+R_BAR_CAP = 0.1  # scenario default for r̄ (an upper bound; the map's b_ℓ may force a smaller one)
+TAU_FRACTION = 0.9  # τ = TAU_FRACTION × min(r̄², r̄_d): strictly inside the interval of Prop. 1
+
+
+def beta(x, tau: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """β(x), β'(x), β''(x) of eq. (beta_exps) with region of influence τ (x > 0; vectorised).
+
+    C² at x = τ: P(1) = 1, P'(1) = P''(1) = 0.
+    """
+    x = np.asarray(x, dtype=float)
+    s = np.minimum(x / tau, 1.0)
+    P = np.minimum(s * s * s * (10.0 + s * (-15.0 + 6.0 * s)), 1.0)  # P ≤ 1 on [0, 1]; guard rounding
+    dP = 30.0 * s * s * (s - 1.0) ** 2
+    ddP = 60.0 * s * (2.0 * s - 1.0) * (s - 1.0)
+    b = 1.0 / P
+    db = -dP / (P * P) / tau
+    ddb = (2.0 * dP * dP / P - ddP) / (P * P) / (tau * tau)
+    inside = x < tau
+    return np.where(inside, b, 1.0), np.where(inside, db, 0.0), np.where(inside, ddb, 0.0)
+
+
+def r_bar_max(obstacles: np.ndarray) -> float:
+    """Supremum of the r̄ of Sec. III-A: min(½ min_{i≠j} ‖b_i − b_j‖, ½ min_i (1 − ‖b_i‖)); ∞ without b."""
+    b = np.asarray(obstacles, dtype=float).reshape(-1, 2)
+    if len(b) == 0:
+        return np.inf
+    r = 0.5 * float(np.min(1.0 - np.linalg.norm(b, axis=1)))
+    if len(b) > 1:
+        d = np.linalg.norm(b[:, None, :] - b[None, :, :], axis=-1)
+        d[np.diag_indices(len(b))] = np.inf
+        r = min(r, 0.5 * float(d.min()))
+    return r
+
+
+def r_bar_d(goal: np.ndarray, obstacles: np.ndarray) -> float:
+    """r̄_d of eq. (bar_r_d): min(1 − ‖χ_d‖², min_ℓ d_ℓ(χ_d))."""
+    g = np.asarray(goal, dtype=float)
+    b = np.asarray(obstacles, dtype=float).reshape(-1, 2)
+    r = 1.0 - float(g @ g)
+    if len(b):
+        r = min(r, float(np.min(np.sum((b - g) ** 2, axis=1))))
+    return r
+
+
+def select_tau(goal, obstacles, *, r_bar_cap: float = R_BAR_CAP, tau_cap: float | None = None,
+               fraction: float = TAU_FRACTION) -> tuple[float, float, float]:
+    """(τ, r̄, r̄_d) per Proposition 1: r̄ = min(r̄_cap, r̄_max(b)), τ = min(τ_cap, fraction·min(r̄², r̄_d)).
+
+    ``tau_cap`` defaults to r̄_cap².  Raises ValueError if the goal is not strictly inside the point world.
+    """
+    if not 0.0 < fraction < 1.0:
+        raise ValueError("fraction must be in (0, 1)")
+    rd = r_bar_d(goal, obstacles)
+    if not rd > 0.0:
+        raise ValueError(f"goal {np.asarray(goal).tolist()} is not inside the point world (r̄_d = {rd:.3g})")
+    rb = min(r_bar_cap, r_bar_max(obstacles))
+    if tau_cap is None:
+        tau_cap = r_bar_cap**2
+    tau = min(tau_cap, fraction * min(rb * rb, rd))
+    return tau, rb, rd
+
+
+@dataclass(frozen=True)
+class NavigationFunction:
+    """φ of Def. 2nd-order NF for goal χ_d, point obstacles b_ℓ and the unit-circle boundary."""
+
+    goal: np.ndarray
+    obstacles: np.ndarray
+    tau: float
+    k1: float = 1.0
+    k2: float = 1.0
+    r_bar: float = float("nan")
+    r_bar_d: float = float("nan")
+
+    @classmethod
+    def for_goal(cls, goal, obstacles, *, k1: float = 1.0, k2: float = 1.0, r_bar_cap: float = R_BAR_CAP,
+                 tau_cap: float | None = None, fraction: float = TAU_FRACTION) -> "NavigationFunction":
+        """φ with τ chosen by ``select_tau`` from the actual b_ℓ."""
+        if not (k1 > 0 and k2 > 0):
+            raise ValueError("k1 and k2 must be positive")
+        goal = np.asarray(goal, dtype=float).reshape(2)
+        obstacles = np.asarray(obstacles, dtype=float).reshape(-1, 2)
+        tau, rb, rd = select_tau(goal, obstacles, r_bar_cap=r_bar_cap, tau_cap=tau_cap, fraction=fraction)
+        return cls(goal, obstacles, tau, k1, k2, rb, rd)
+
+    @classmethod
+    def for_map(cls, pw_map, x_goal, **kwargs) -> "NavigationFunction":
+        """φ for a workspace goal x_d: χ_d = H(x_d), b_ℓ = the map's hole points."""
+        return cls.for_goal(pw_map(np.asarray(x_goal, dtype=float)), pw_map.hole_points, **kwargs)
+
+    def evaluate(self, chi) -> tuple[float, np.ndarray, np.ndarray]:
+        """(φ, ∇φ, ∇²φ) at χ (shape (2,)); only barriers with d_ℓ(χ) < τ contribute (β' = β'' = 0 beyond)."""
+        chi = np.asarray(chi, dtype=float)
+        e = chi - self.goal
+        diff = chi - self.obstacles  # (L, 2)
+        d = np.empty(len(diff) + 1)
+        d[0] = 1.0 - chi @ chi
+        d[1:] = diff[:, 0] * diff[:, 0] + diff[:, 1] * diff[:, 1]
+        value = self.k1 * float(e @ e)
+        grad = 2.0 * self.k1 * e
+        hess = np.diag([2.0 * self.k1, 2.0 * self.k1])
+        active = np.flatnonzero(d < self.tau)
+        if len(active) == 0:
+            return value, grad, hess
+        grad_d = np.vstack([-2.0 * chi, 2.0 * diff])[active]
+        hess_d = np.where(active == 0, -2.0, 2.0)  # ∇²d_ℓ = hess_d I
+        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+            b, db, ddb = beta(d[active], self.tau)
+        value += self.k2 * float(np.sum(b - 1.0))
+        grad = grad + self.k2 * (db @ grad_d)
+        hess = hess + self.k2 * (float(db @ hess_d) * np.eye(2) + (grad_d.T * ddb) @ grad_d)
+        return value, grad, hess
+
+    def value(self, chi) -> float:
+        return self.evaluate(chi)[0]
+
+    def gradient(self, chi) -> np.ndarray:
+        return self.evaluate(chi)[1]
+
+    def hessian(self, chi) -> np.ndarray:
+        return self.evaluate(chi)[2]
+
+
+def desired_velocity(pw_map, nf: NavigationFunction, x, xdot):
+    """v_d = −J_H(x)⁻¹ ∇φ(H(x)) (eq. (v_d)) and its exact time derivative along ẋ.
+
+    With χ̇ = J ẋ, J̇ = Σ_i ∂J/∂x_i ẋ_i (the Hessians of H) and J v_d = −∇φ:
+    v̇_d = −J⁻¹ (∇²φ χ̇ + J̇ v_d).  Returns (v_d, v̇_d, J_H, ∇φ).
+    """
+    x = np.asarray(x, dtype=float)
+    xdot = np.asarray(xdot, dtype=float)
+    chi, J, Hs = pw_map.evaluate(x)
+    _, g, G = nf.evaluate(chi)
+    (a, b), (c, d) = J
+    J_inv = np.array([[d, -b], [-c, a]]) / (a * d - b * c)
+    v_d = -(J_inv @ g)
+    Jdot = Hs @ xdot  # Jdot[k, i] = Σ_j ∂²H_k/∂x_i∂x_j ẋ_j
+    vdot_d = -(J_inv @ (G @ (J @ xdot) + Jdot @ v_d))
+    return v_d, vdot_d, J, g

@@ -1,0 +1,611 @@
+"""Harmonic point-world map H: free space -> open unit disk (paper Sec. III-A, transformation χ = H(x)).
+
+H = (u, v) with u, v harmonic in the free space F; on the outer boundary u + iv runs once
+counter-clockwise around the unit circle (normalised arc length from a fixed vertex); on hole ℓ,
+H equals an unknown constant b_ℓ fixed by zero flux (Vlantis et al., ICRA 2018).
+
+Discretisation: single-layer potential u(x) = Σ_j σ_j W_j(x) + c with W_j(x) = ∫_panel_j ln|x − y|² ds_y
+over straight panels, integrated in closed form; collocation at panel midpoints; one unknown b_ℓ and one
+zero-charge row per hole (zero flux ⇔ zero charge when u is constant inside the hole), one constant c and
+a zero-total-charge row (makes the representation complete at any length scale).  For a panel from a to
+b (length L, unit tangent t, left normal n) and r_a = |x − a|², r_b = |x − b|², u_a = (x − a)·t,
+u_b = u_a − L, η = (x − a)·n, θ = signed angle under which the panel is seen from x
+(atan2 of cross and dot of x − a and x − b, continuous everywhere off the panel):
+
+    W   = u_a ln r_a − u_b ln r_b − 2L + 2ηθ,
+    ∇W  = (ln r_a − ln r_b) t + 2θ n,
+    ∇²W = A (t tᵀ − n nᵀ) + B (t nᵀ + n tᵀ),  A = 2(u_a/r_a − u_b/r_b),  B = 2η(1/r_a − 1/r_b).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.linalg
+import shapely
+from scipy.spatial import cKDTree
+from shapely.geometry import MultiPolygon, Polygon
+from shapely.geometry.polygon import orient
+
+from mrodrake.errors import UserError
+
+_SHARP_ANGLE = math.radians(30.0)  # vertices turning more than this are kept as panel ends
+_GENTLE_ANGLE = math.radians(0.5)  # vertices turning less than this carry no curvature cap
+_LOCAL_ARC_RATIO = 2.5  # boundary points closer along the boundary than this x straight are neighbours
+_CHUNK = 1 << 15  # kernel entries per block in batch evaluation and assembly
+_TWO_PI = 2.0 * math.pi
+_TINY = 1e-300
+
+
+@dataclass
+class _Ring:
+    """One boundary ring, oriented with the free side on the left, rotated to start at a panel end."""
+
+    xy: np.ndarray  # (m+1, 2) closed vertex list
+    cum: np.ndarray  # (m+1,) arc length at the vertices
+    breaks: np.ndarray  # arc positions that must be panel ends (sorted, starts with 0)
+    curv_s: np.ndarray  # (k,) arc positions of gently turning vertices
+    curv_cap: np.ndarray  # (k,) panel-length cap there (fraction of the local radius of curvature)
+
+    @property
+    def perimeter(self) -> float:
+        return float(self.cum[-1])
+
+    def point(self, s: np.ndarray) -> np.ndarray:
+        return np.column_stack([np.interp(s, self.cum, self.xy[:, 0]), np.interp(s, self.cum, self.xy[:, 1])])
+
+    def normal(self, s: np.ndarray) -> np.ndarray:
+        """Unit normal pointing into the free space (left of travel); bisector at vertices."""
+        edges = np.diff(self.xy, axis=0)
+        tang = edges / np.linalg.norm(edges, axis=1)[:, None]
+        m = len(edges)
+        k = np.clip(np.searchsorted(self.cum, s, side="right") - 1, 0, m - 1)
+        t = tang[k].copy()
+        at_vertex = np.isclose(s, self.cum[k], rtol=0.0, atol=1e-12 * max(self.perimeter, 1.0))
+        if np.any(at_vertex):
+            kv = k[at_vertex]
+            bis = tang[kv] + tang[(kv - 1) % m]
+            nb = np.linalg.norm(bis, axis=1)
+            good = nb > 1e-9
+            t_v = t[at_vertex]
+            t_v[good] = bis[good] / nb[good, None]
+            t[at_vertex] = t_v
+        return np.column_stack([-t[:, 1], t[:, 0]])
+
+
+def _prepare_ring(coords: np.ndarray, *, is_exterior: bool, curvature_fraction: float) -> _Ring:
+    pts = np.asarray(coords, dtype=float)[:-1]
+    scale = float(np.max(np.ptp(pts, axis=0))) if len(pts) else 0.0
+    keep = np.linalg.norm(pts - np.roll(pts, 1, axis=0), axis=1) > 1e-12 * max(scale, 1.0)
+    pts = pts[keep]
+    if len(pts) < 3:
+        raise UserError("free_space: a boundary ring has fewer than 3 distinct vertices")
+    e_in = pts - np.roll(pts, 1, axis=0)  # edge arriving at vertex i
+    e_out = np.roll(pts, -1, axis=0) - pts  # edge leaving vertex i
+    turn = np.arctan2(e_in[:, 0] * e_out[:, 1] - e_in[:, 1] * e_out[:, 0], np.sum(e_in * e_out, axis=1))
+    sharp = np.abs(turn) > _SHARP_ANGLE
+    if is_exterior:
+        start = int(np.lexsort((pts[:, 0], pts[:, 1]))[0])  # lowest, then leftmost vertex
+    elif np.any(sharp):
+        start = int(np.flatnonzero(sharp)[0])
+    else:
+        start = 0
+    pts = np.roll(pts, -start, axis=0)
+    turn = np.roll(turn, -start)
+    sharp = np.roll(sharp, -start)
+    sharp[0] = True
+    closed = np.vstack([pts, pts[:1]])
+    lengths = np.linalg.norm(np.diff(closed, axis=0), axis=1)
+    cum = np.concatenate([[0.0], np.cumsum(lengths)])
+    breaks = cum[:-1][sharp]
+    gentle = (~sharp) & (np.abs(turn) > _GENTLE_ANGLE)
+    radius = 0.5 * (lengths + np.roll(lengths, 1)) / np.maximum(np.abs(turn), 1e-300)
+    return _Ring(
+        xy=closed,
+        cum=cum,
+        breaks=breaks,
+        curv_s=cum[:-1][gentle],
+        curv_cap=curvature_fraction * radius[gentle],
+    )
+
+
+def _cone_envelope(s: np.ndarray, h: np.ndarray, perimeter: float, grading: float) -> np.ndarray:
+    """min_j (h_j + grading · circular arc distance(s_i, s_j)) on a closed ring (exact, O(n))."""
+    n = len(s)
+    s3 = np.concatenate([s - perimeter, s, s + perimeter])
+    h3 = np.tile(h, 3)
+    fwd = grading * s3 + np.minimum.accumulate(h3 - grading * s3)
+    bwd = np.minimum.accumulate((h3 + grading * s3)[::-1])[::-1] - grading * s3
+    return np.minimum(fwd, bwd)[n : 2 * n]
+
+
+def _local_width(xy, nrm, ring_id, s, perims, radii, k_nearest=64):
+    """Local width 2ρ of the free space at each boundary sample.
+
+    ρ is the radius of the largest ball tangent at the sample (free side) that contains no other sample
+    facing it, ignoring samples that are neighbours along the boundary (arc distance ≤ 2.5 × straight
+    distance, so corners and the sample's own curve do not count).  Only the ``k_nearest`` samples within
+    ``radii`` are examined; where none constrains the ball the width is reported as ``radii``.
+    """
+    n = len(xy)
+    k = min(k_nearest, n)
+    dist, j = cKDTree(xy).query(xy, k=k, distance_upper_bound=float(np.max(radii)))
+    valid = dist <= radii[:, None]
+    j = np.where(valid, j, 0)
+    d = xy[j] - xy[:, None, :]
+    dd = d[..., 0] * d[..., 0] + d[..., 1] * d[..., 1]
+    dn = d[..., 0] * nrm[:, None, 0] + d[..., 1] * nrm[:, None, 1]
+    ds = np.abs(s[j] - s[:, None])
+    ds = np.minimum(ds, perims[ring_id][:, None] - ds)
+    local = (ring_id[j] == ring_id[:, None]) & (ds * ds <= (_LOCAL_ARC_RATIO**2) * dd)
+    facing = (d[..., 0] * nrm[j][..., 0] + d[..., 1] * nrm[j][..., 1]) < 0.0  # q's free side faces p
+    ok = valid & (dn > 0.0) & facing & ~local
+    val = np.where(ok, dd / np.where(ok, dn, 1.0), np.inf)  # 2ρ for this pair
+    return np.minimum(np.asarray(radii, dtype=float), val.min(axis=1))
+
+
+def _discretise(rings, *, max_panel, min_panel, fractions, grading):
+    """Graded panels along every ring (see ``PointWorldMap.build``); returns ends, ring ids, arc params.
+
+    Widths are computed at samples (refined until their spacing is at most half the target length);
+    the target is the arc-length cone envelope of the raw sizes and of the curvature caps.
+    """
+    perims = np.array([ring.perimeter for ring in rings])
+    breaks_all = [np.append(ring.breaks, ring.perimeter) for ring in rings]
+    piece_caps = [np.maximum(fr * np.diff(br), min_panel) for fr, br in zip(fractions, breaks_all)]
+    samples = []  # initial samples: the breakpoints and a uniform spacing of max_panel / 2
+    for ring in rings:
+        count = int(math.ceil(ring.perimeter / (0.5 * max_panel)))
+        samples.append(np.union1d(ring.breaks, np.linspace(0.0, ring.perimeter, count + 1)[:-1]))
+    h_prev = None
+    width_cap = max_panel / min(fractions)  # wider places get the maximal panel anyway
+    for _ in range(12):
+        ring_id = np.concatenate([np.full(len(sp), r) for r, sp in enumerate(samples)])
+        s_all = np.concatenate(samples)
+        xy = np.vstack([rings[r].point(sp) for r, sp in enumerate(samples)])
+        nrm = np.vstack([rings[r].normal(sp) for r, sp in enumerate(samples)])
+        if h_prev is None:
+            radii = np.full(len(s_all), width_cap)
+        else:
+            frac_all = np.concatenate([np.full(len(sp), fractions[r]) for r, sp in enumerate(samples)])
+            radii = np.minimum(width_cap, 1.5 * np.concatenate(h_prev) / frac_all)
+        width = _local_width(xy, nrm, ring_id, s_all, perims, radii)
+        added = False
+        new_samples, h_new, env = [], [], []
+        off = 0
+        for r, sp in enumerate(samples):
+            ring = rings[r]
+            w = width[off : off + len(sp)]
+            off += len(sp)
+            piece = np.searchsorted(breaks_all[r], sp, side="right") - 1
+            raw = np.minimum(fractions[r] * w, piece_caps[r][piece])
+            u_s = np.concatenate([sp, ring.curv_s])
+            u_h = np.concatenate([raw, ring.curv_cap])
+            order = np.argsort(u_s, kind="stable")
+            u_s, u_h = u_s[order], u_h[order]
+            u_hs = np.clip(_cone_envelope(u_s, u_h, perims[r], grading), min_panel, max_panel)
+            s_ext = np.append(u_s, perims[r])
+            h_ext = np.append(u_hs, u_hs[0])
+            env.append((s_ext, h_ext))
+            gap = np.diff(s_ext)
+            need = np.ceil(gap / (0.5 * np.minimum(h_ext[:-1], h_ext[1:])) - 1e-9).astype(np.int64)
+            # every interval with too few samples gets new ones (curvature points do not count)
+            big = np.flatnonzero(need > 1)
+            if len(big):
+                extra = np.concatenate([s_ext[q] + gap[q] * np.arange(1, need[q]) / need[q] for q in big])
+                cand = np.union1d(sp, extra)
+                if len(cand) > len(sp):
+                    added = True
+                    sp = cand
+            new_samples.append(sp)
+            h_new.append(np.interp(sp, s_ext, h_ext))
+        samples, h_prev = new_samples, h_new
+        if not added:
+            break
+    # panel ends by equidistribution of ∫ ds / h on every piece between consecutive breakpoints
+    ends_xy, ends_s, rid = [], [], []
+    for r, ring in enumerate(rings):
+        s_ext, h_ext = env[r]
+        inv = 1.0 / h_ext
+        cumn = np.concatenate([[0.0], np.cumsum(0.5 * (inv[1:] + inv[:-1]) * np.diff(s_ext))])
+        br = breaks_all[r]
+        nb = np.interp(br, s_ext, cumn)
+        least = {1: 3, 2: 2}.get(len(br) - 1, 1)  # a ring needs at least three panels
+        for a, b, na, nb_ in zip(br[:-1], br[1:], nb[:-1], nb[1:]):
+            count = max(least, int(math.ceil(nb_ - na - 1e-6)))
+            s_ends = np.interp(np.linspace(na, nb_, count + 1), cumn, s_ext)
+            s_ends[0], s_ends[-1] = a, b
+            ends_s.append(s_ends)
+            ends_xy.append(ring.point(s_ends))
+            rid.append(np.full(count, r))
+    a_xy = np.vstack([e[:-1] for e in ends_xy])
+    b_xy = np.vstack([e[1:] for e in ends_xy])
+    s_a = np.concatenate([e[:-1] for e in ends_s])
+    s_b = np.concatenate([e[1:] for e in ends_s])
+    return a_xy, b_xy, np.concatenate(rid), s_a, s_b
+
+
+def _kernel(x, y, vx, vy, tx, ty, L, *, derivs: bool):
+    """Closed forms for the panel chain at points (x, y) (shape (m,)).
+
+    The chain is the vertex list (vx, vy); link j runs from vertex j to vertex j + 1 with unit tangent
+    (tx, ty)_j and length L_j.  Returns arrays of shape (m, links): W, ln r_a − ln r_b, θ and the Hessian
+    coefficients A, B (the last four only if ``derivs``).
+    """
+    dx = x[:, None] - vx
+    dy = y[:, None] - vy
+    r = np.maximum(dx * dx + dy * dy, _TINY)  # at a panel end W is finite (0 · ln 0 = 0)
+    lr = np.log(r)
+    ang = np.arctan2(dy, dx)
+    theta = ang[:, 1:] - ang[:, :-1]  # angle from x − a to x − b, up to a multiple of 2π
+    theta -= _TWO_PI * np.rint(theta * (1.0 / _TWO_PI))
+    dxa = dx[:, :-1]
+    dya = dy[:, :-1]
+    ua = dxa * tx + dya * ty
+    eta = dya * tx - dxa * ty
+    lb = lr[:, 1:]
+    dl = lr[:, :-1] - lb
+    W = ua * dl + L * (lb - 2.0) + 2.0 * eta * theta
+    if not derivs:
+        return W, None, None, None, None
+    ir = 1.0 / r
+    ib = ir[:, 1:]
+    di = ir[:, :-1] - ib
+    A = 2.0 * (ua * di + L * ib)
+    B = 2.0 * eta * di
+    return W, dl, theta, A, B
+
+
+def _chain(a_xy, b_xy, ring_of_panel):
+    """Vertex chain of the panels (ring by ring, each ring closed); links between rings are dummies."""
+    vs, real = [], []
+    for r in np.unique(ring_of_panel):
+        idx = np.flatnonzero(ring_of_panel == r)
+        vs.append(np.vstack([a_xy[idx], b_xy[idx[-1:]]]))
+        real.append(np.ones(len(idx), dtype=bool))
+        real.append(np.zeros(1, dtype=bool))
+    v = np.vstack(vs)
+    real = np.concatenate(real)[:-1]
+    d = np.diff(v, axis=0)
+    L = np.hypot(d[:, 0], d[:, 1])
+    return v, L, d[:, 0] / L, d[:, 1] / L, real
+
+
+def _solve_refined(M: np.ndarray, rhs: np.ndarray) -> np.ndarray:
+    """Solve M X = rhs to float64 accuracy: float32 LU plus iterative refinement (float64 LU if that stalls)."""
+    lu = scipy.linalg.lu_factor(M.astype(np.float32), check_finite=False)
+    x = scipy.linalg.lu_solve(lu, rhs.astype(np.float32), check_finite=False).astype(np.float64)
+    scale = np.abs(M).max() * np.abs(x).max() + np.abs(rhs).max()
+    for _ in range(10):
+        r = rhs - M @ x
+        if np.abs(r).max() <= 1e-13 * scale:
+            return x
+        x += scipy.linalg.lu_solve(lu, r.astype(np.float32), check_finite=False)
+    if np.all(np.isfinite(x)) and np.abs(rhs - M @ x).max() <= 1e-11 * scale:
+        return x
+    return scipy.linalg.lu_solve(scipy.linalg.lu_factor(M, check_finite=False), rhs, check_finite=False)
+
+
+def _as_points(x) -> tuple[np.ndarray, bool]:
+    arr = np.asarray(x, dtype=float)
+    if arr.shape == (2,):
+        return arr[None, :], True
+    if arr.ndim == 2 and arr.shape[1] == 2:
+        return arr, False
+    raise ValueError(f"points must have shape (2,) or (n, 2), got {arr.shape}")
+
+
+class PointWorldMap:
+    """The harmonic map H of one free space onto the unit disk, with J_H and the Hessians in closed form.
+
+    ``hole_points[ℓ]`` is b_ℓ, the image of ``free_space.interiors[ℓ]``.
+    """
+
+    def __init__(self, a_xy, b_xy, ring_of_panel, sigma, hole_points, const, free_space, exterior_param,
+                 build_seconds=0.0):
+        """Use ``build``; ``exterior_param`` = (arc position of the outer panels' ends a and b, perimeter)."""
+        self.panel_start = np.asarray(a_xy, dtype=float)
+        self.panel_end = np.asarray(b_xy, dtype=float)
+        self.panel_ring = np.asarray(ring_of_panel, dtype=int)
+        self.sigma = np.asarray(sigma, dtype=float)  # (n, 2) panel charges for u and v
+        self.hole_points = np.asarray(hole_points, dtype=float).reshape(-1, 2)
+        self.free_space = free_space
+        self.build_seconds = float(build_seconds)
+        self._ext_param = exterior_param
+        d = self.panel_end - self.panel_start
+        self.panel_length = np.hypot(d[:, 0], d[:, 1])
+        v, L, tx, ty, real = _chain(self.panel_start, self.panel_end, self.panel_ring)
+        self._geom = (v[:, 0].copy(), v[:, 1].copy(), tx, ty, L)
+        sig = np.zeros((len(L), 2))
+        sig[real] = self.sigma
+        self._sig_links = sig
+        # J[k, i] = Σ_j σ_jk (dl_j t_ji + 2 θ_j n_ji),  n = (−t_y, t_x); columns (k, i) = (0,x),(1,x),(0,y),(1,y)
+        self._S_dl = np.hstack([sig * tx[:, None], sig * ty[:, None]])
+        self._S_th = np.hstack([-2.0 * sig * ty[:, None], 2.0 * sig * tx[:, None]])
+        c2, s2 = tx * tx - ty * ty, 2.0 * tx * ty
+        # Hxx = A c2 − B s2, Hxy = A s2 + B c2; columns (k, ·) = (0,xx),(1,xx),(0,xy),(1,xy)
+        self._S_A = np.hstack([sig * c2[:, None], sig * s2[:, None]])
+        self._S_B = np.hstack([-sig * s2[:, None], sig * c2[:, None]])
+        # single-point path: [dl, θ] @ _S_g and [A, B] @ _S_h in one product each
+        self._S_g = np.vstack([self._S_dl, self._S_th])
+        self._S_h = np.vstack([self._S_A, self._S_B])
+        self._S_L = L[:, None] * sig
+        self._const = np.asarray(const, dtype=float)
+        self._const_point = self._const - 2.0 * L @ sig
+        self._mid_tree = cKDTree(0.5 * (self.panel_start + self.panel_end))
+        self._seeds = None
+
+    # ------------------------------------------------------------------ construction
+    @classmethod
+    def build(
+        cls,
+        free_space,
+        *,
+        max_panel: float | None = None,
+        min_panel: float | None = None,
+        clearance_fraction: float = 0.25,
+        hole_refinement: float = 2.0,
+        grading: float = 0.4,
+        curvature_fraction: float = 0.5,
+    ) -> "PointWorldMap":
+        """Discretise the boundary of ``free_space`` (a shapely Polygon with holes) and solve for H.
+
+        Panel length ≈ ``clearance_fraction`` × local width of the free space (the diameter of the largest
+        ball tangent there), at most ``curvature_fraction`` × the local radius of curvature and
+        ``clearance_fraction`` × the length of a straight stretch between sharp corners, growing at most
+        ``grading`` per unit distance, clipped to [min_panel, max_panel] (defaults: diameter/25 and
+        diameter/2000).  Holes are refined ``hole_refinement`` times more (their boundary error, relative to
+        the separation of the points b_ℓ, scales with the product of the two fractions).
+        """
+        t0 = time.perf_counter()
+        poly = _validate(free_space)
+        minx, miny, maxx, maxy = poly.bounds
+        diam = math.hypot(maxx - minx, maxy - miny)
+        if max_panel is None:
+            max_panel = diam / 25.0
+        if min_panel is None:
+            min_panel = diam / 2000.0
+        if not (0 < min_panel <= max_panel):
+            raise ValueError("need 0 < min_panel <= max_panel")
+        if not (0 < clearance_fraction <= 1 and grading > 0 and curvature_fraction > 0 and hole_refinement >= 1):
+            raise ValueError("need clearance_fraction in (0, 1], grading, curvature_fraction > 0, hole_refinement >= 1")
+        poly = orient(poly, sign=1.0)  # exterior counter-clockwise, holes clockwise: free side on the left
+        outer = np.asarray(poly.exterior.coords)
+        rings = [_prepare_ring(outer, is_exterior=True, curvature_fraction=curvature_fraction)]
+        hole_curvature = curvature_fraction / hole_refinement
+        rings += [
+            _prepare_ring(np.asarray(h.coords), is_exterior=False, curvature_fraction=hole_curvature)
+            for h in poly.interiors
+        ]
+        a_xy, b_xy, rid, s_a, s_b = _discretise(
+            rings,
+            max_panel=max_panel,
+            min_panel=min_panel,
+            fractions=[clearance_fraction] + [clearance_fraction / hole_refinement] * (len(rings) - 1),
+            grading=grading,
+        )
+        n = len(a_xy)
+        n_holes = len(rings) - 1
+        v, L_link, tx, ty, real = _chain(a_xy, b_xy, rid)
+        L = L_link[real]
+        mid = 0.5 * (a_xy + b_xy)
+        size = n + n_holes + 1
+        M = np.zeros((size, size))
+        rows = max(1, (8 * _CHUNK) // n)
+        for i in range(0, n, rows):
+            j = min(i + rows, n)
+            W = _kernel(mid[i:j, 0], mid[i:j, 1], v[:, 0], v[:, 1], tx, ty, L_link, derivs=False)[0]
+            M[i:j, :n] = W[:, real]
+        hole_of_panel = rid - 1
+        on_hole = hole_of_panel >= 0
+        M[np.flatnonzero(on_hole), n + hole_of_panel[on_hole]] = -1.0  # u = b_ℓ on hole ℓ
+        M[:n, n + n_holes] = 1.0  # the constant c
+        M[n + hole_of_panel[on_hole], np.flatnonzero(on_hole)] = L[on_hole]  # zero charge per hole
+        M[n + n_holes, :n] = L  # zero total charge
+        ext = ~on_hole
+        theta = 2.0 * np.pi * (0.5 * (s_a + s_b)[ext]) / rings[0].perimeter
+        rhs = np.zeros((size, 2))
+        rhs[np.flatnonzero(ext), 0] = np.cos(theta)
+        rhs[np.flatnonzero(ext), 1] = np.sin(theta)
+        sol = _solve_refined(M, rhs)
+        sigma = sol[:n]
+        holes = sol[n : n + n_holes]
+        const = sol[n + n_holes]
+        exterior_param = (s_a[ext], s_b[ext], rings[0].perimeter)
+        return cls(a_xy, b_xy, rid, sigma, holes, const, poly, exterior_param, time.perf_counter() - t0)
+
+    # ------------------------------------------------------------------ properties
+    @property
+    def n_panels(self) -> int:
+        return len(self.panel_length)
+
+    @property
+    def margin(self) -> float:
+        """A safety margin valid everywhere: the longest panel (see ``local_margin`` for a local one)."""
+        return float(self.panel_length.max())
+
+    def local_margin(self, x) -> np.ndarray | float:
+        """Length of the panel nearest to x (midpoint distance): keep this far from the boundary."""
+        pts, single = _as_points(x)
+        _, k = self._mid_tree.query(pts)
+        out = self.panel_length[k]
+        return float(out[0]) if single else out
+
+    # ------------------------------------------------------------------ evaluation
+    def _eval(self, pts, want_derivs=True):
+        m = len(pts)
+        Hv = np.empty((m, 2))
+        Jv = np.empty((m, 2, 2)) if want_derivs else None
+        Hs = np.empty((m, 2, 2, 2)) if want_derivs else None
+        rows = max(1, _CHUNK // self.n_panels)
+        for i in range(0, m, rows):
+            sl = slice(i, i + rows)
+            W, dl, th, A, B = _kernel(pts[sl, 0], pts[sl, 1], *self._geom, derivs=want_derivs)
+            Hv[sl] = W @ self._sig_links + self._const
+            if want_derivs:
+                g = (dl @ self._S_dl + th @ self._S_th).reshape(-1, 2, 2)  # [point, i, k]
+                Jv[sl] = g.transpose(0, 2, 1)
+                h = (A @ self._S_A + B @ self._S_B).reshape(-1, 2, 2)  # [point, (xx, xy), k]
+                hxx = h[:, 0, :]
+                hxy = h[:, 1, :]
+                Hs[sl, :, 0, 0] = hxx
+                Hs[sl, :, 0, 1] = hxy
+                Hs[sl, :, 1, 0] = hxy
+                Hs[sl, :, 1, 1] = -hxx
+        return Hv, Jv, Hs
+
+    def _eval_point(self, x: float, y: float, derivs: bool):
+        """Single-point version of ``_kernel`` + sums with fewer, fused array operations."""
+        vx, vy, tx, ty, L = self._geom
+        n = len(L)
+        dx = x - vx
+        dy = y - vy
+        r = dx * dx
+        r += dy * dy
+        np.maximum(r, _TINY, out=r)
+        lr = np.log(r)
+        ang = np.arctan2(dy, dx)
+        g = np.empty(2 * n)
+        dl = np.subtract(lr[:-1], lr[1:], out=g[:n])
+        th = np.subtract(ang[1:], ang[:-1], out=g[n:])
+        th -= _TWO_PI * np.rint(th * (1.0 / _TWO_PI))
+        dxa = dx[:-1]
+        dya = dy[:-1]
+        ua = dxa * tx
+        ua += dya * ty
+        eta = dya * tx
+        eta -= dxa * ty
+        W = ua * dl
+        W += 2.0 * eta * th
+        value = W @ self._sig_links + lr[1:] @ self._S_L + self._const_point
+        if not derivs:
+            return value, None, None
+        ir = np.reciprocal(r)
+        hb = np.empty(2 * n)
+        di = np.subtract(ir[:-1], ir[1:], out=hb[n:])
+        A = np.multiply(ua, di, out=hb[:n])
+        A += L * ir[1:]
+        A *= 2.0
+        di *= 2.0 * eta
+        gj = g @ self._S_g  # (0,x),(1,x),(0,y),(1,y)
+        hh = hb @ self._S_h  # (0,xx),(1,xx),(0,xy),(1,xy)
+        J = np.array([[gj[0], gj[2]], [gj[1], gj[3]]])
+        Hs = np.array([[[hh[0], hh[2]], [hh[2], -hh[0]]], [[hh[1], hh[3]], [hh[3], -hh[1]]]])
+        return value, J, Hs
+
+    def __call__(self, x) -> np.ndarray:
+        """χ = H(x) for x of shape (2,) or (n, 2)."""
+        pts, single = _as_points(x)
+        if single:
+            return self._eval_point(pts[0, 0], pts[0, 1], False)[0]
+        return self._eval(pts, want_derivs=False)[0]
+
+    def jacobian(self, x) -> np.ndarray:
+        """J_H(x)[k, i] = ∂H_k/∂x_i, shape (2, 2) or (n, 2, 2)."""
+        pts, single = _as_points(x)
+        if single:
+            return self._eval_point(pts[0, 0], pts[0, 1], True)[1]
+        return self._eval(pts)[1]
+
+    def hessians(self, x) -> np.ndarray:
+        """Hess[k, i, j] = ∂²H_k/∂x_i∂x_j, shape (2, 2, 2) or (n, 2, 2, 2)."""
+        pts, single = _as_points(x)
+        if single:
+            return self._eval_point(pts[0, 0], pts[0, 1], True)[2]
+        return self._eval(pts)[2]
+
+    def evaluate(self, x) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(H, J_H, Hessians) at x, sharing the kernel work."""
+        pts, single = _as_points(x)
+        if single:
+            return self._eval_point(pts[0, 0], pts[0, 1], True)
+        return self._eval(pts)
+
+    # ------------------------------------------------------------------ diagnostics and inverse
+    def boundary_errors(self, samples_per_panel: int = 4) -> tuple[float, np.ndarray]:
+        """Deviation from the boundary data between collocation points.
+
+        Returns (outer, holes): max |H − e^{2πi s/P}| over the outer boundary (s its arc position, P its
+        perimeter) and, per hole ℓ, max |H − b_ℓ| over its boundary; sampled at fractions
+        (k + 0.5)/samples_per_panel of every panel.
+        """
+        frac = (np.arange(samples_per_panel) + 0.5) / samples_per_panel
+        d = self.panel_end - self.panel_start
+        pts = self.panel_start[:, None, :] + frac[None, :, None] * d[:, None, :]
+        vals = self(pts.reshape(-1, 2)).reshape(self.n_panels, samples_per_panel, 2)
+        ext = self.panel_ring == 0
+        s_a, s_b, perim = self._ext_param
+        s = s_a[:, None] + frac[None, :] * (s_b - s_a)[:, None]
+        target = np.stack([np.cos(2 * np.pi * s / perim), np.sin(2 * np.pi * s / perim)], axis=-1)
+        outer = float(np.max(np.linalg.norm(vals[ext] - target, axis=-1)))
+        holes = np.zeros(len(self.hole_points))
+        if np.any(~ext):
+            ring = self.panel_ring[~ext] - 1
+            err = np.max(np.linalg.norm(vals[~ext] - self.hole_points[ring][:, None, :], axis=-1), axis=1)
+            np.maximum.at(holes, ring, err)
+        return outer, holes
+
+    def _inverse_seeds(self):
+        if self._seeds is None:
+            d = self.panel_end - self.panel_start
+            nrm = np.column_stack([-d[:, 1], d[:, 0]]) / self.panel_length[:, None]
+            mid = 0.5 * (self.panel_start + self.panel_end)
+            cand = np.vstack([mid + f * self.panel_length[:, None] * nrm for f in (1.0, 3.0, 8.0)])
+            minx, miny, maxx, maxy = self.free_space.bounds
+            gx, gy = np.meshgrid(np.linspace(minx, maxx, 60), np.linspace(miny, maxy, 60))
+            cand = np.vstack([cand, np.column_stack([gx.ravel(), gy.ravel()])])
+            inside = shapely.contains_xy(self.free_space, cand[:, 0], cand[:, 1])
+            cand = cand[inside]
+            cand = cand[shapely.distance(self.free_space.boundary, shapely.points(cand)) >= self.local_margin(cand)]
+            self._seeds = (cand, self(cand))
+        return self._seeds
+
+    def inverse(self, chi, guess=None, *, tol: float = 1e-12, max_iter: int = 100) -> np.ndarray:
+        """x with H(x) = χ, by damped Newton from ``guess`` (default: the best of a set of interior seeds)."""
+        chi = np.asarray(chi, dtype=float)
+        if guess is None:
+            cand, vals = self._inverse_seeds()
+            guess = cand[np.argmin(np.linalg.norm(vals - chi, axis=1))]
+        x = np.asarray(guess, dtype=float).copy()
+        Hx, Jx, _ = self.evaluate(x)
+        res = Hx - chi
+        nres = float(np.linalg.norm(res))
+        for _ in range(max_iter):
+            if nres <= tol:
+                return x
+            step = np.linalg.solve(Jx, res)
+            lam = 1.0
+            while lam > 1e-6:
+                x_new = x - lam * step
+                H_new, J_new, _ = self.evaluate(x_new)
+                n_new = float(np.linalg.norm(H_new - chi))
+                if n_new < nres and shapely.contains_xy(self.free_space, x_new[0], x_new[1]):
+                    break
+                lam *= 0.5
+            else:
+                break
+            x, Jx, res, nres = x_new, J_new, H_new - chi, n_new
+        if nres > 1e3 * tol:
+            raise RuntimeError(f"inverse did not converge: |H(x) - chi| = {nres:.3g}")
+        return x
+
+
+def _validate(free_space) -> Polygon:
+    if isinstance(free_space, MultiPolygon):
+        parts = [g for g in free_space.geoms if not g.is_empty]
+        if len(parts) != 1:
+            raise UserError(f"free_space: not one connected polygon ({len(parts)} components)")
+        free_space = parts[0]
+    if not isinstance(free_space, Polygon):
+        raise UserError(f"free_space: expected a shapely Polygon, got {type(free_space).__name__}")
+    if free_space.is_empty:
+        raise UserError("free_space: empty")
+    if not free_space.is_valid:
+        reason = shapely.is_valid_reason(free_space).splitlines()[0]
+        raise UserError(f"free_space: invalid polygon ({reason})")
+    if free_space.area <= 0.0:
+        raise UserError("free_space: empty")
+    return free_space

@@ -1,0 +1,334 @@
+"""Tests of the harmonic point-world map H (mrodrake.control.pointworld)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+import shapely
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+from scipy.integrate import quad
+from shapely.geometry import MultiPolygon, Point, Polygon, box
+from shapely.ops import unary_union
+
+from mrodrake.control.bench_map import office_like_free_space
+from mrodrake.control.pointworld import PointWorldMap, _kernel
+from mrodrake.errors import UserError
+
+ROBOT_RADIUS = 0.4
+
+
+def two_rooms_free_space():
+    """40 m x 30 m, two rooms joined by a 4 m door, two boxes and two disks (4 holes)."""
+    obstacles = [
+        box(19.5, 0, 20.5, 13), box(19.5, 17, 20.5, 30), box(5, 5, 9, 7), box(28, 20, 31, 22),
+        Point(10, 22).buffer(1.5), Point(32, 8).buffer(1.0),
+    ]
+    outer = box(0, 0, 40, 30).buffer(-ROBOT_RADIUS, join_style="mitre")
+    return outer.difference(unary_union(obstacles).buffer(ROBOT_RADIUS))
+
+
+@pytest.fixture(scope="module")
+def rooms():
+    free = two_rooms_free_space()
+    return free, PointWorldMap.build(free)
+
+
+@pytest.fixture(scope="module")
+def office():
+    free = office_like_free_space()
+    return free, PointWorldMap.build(free)
+
+
+def grid_away_from_margin(pw, free, spacing):
+    """Grid points of the free space at least one local panel length from its boundary."""
+    minx, miny, maxx, maxy = free.bounds
+    gx, gy = np.meshgrid(np.arange(minx, maxx, spacing), np.arange(miny, maxy, spacing))
+    pts = np.column_stack([gx.ravel(), gy.ravel()])
+    pts = pts[shapely.contains_xy(free, pts[:, 0], pts[:, 1])]
+    dist = shapely.distance(free.boundary, shapely.points(pts))
+    return pts[dist >= pw.local_margin(pts)]
+
+
+def separation(b):
+    """Per hole: half the distance to the nearest other b or to the unit circle (the r̄ of hole ℓ)."""
+    r = 1.0 - np.linalg.norm(b, axis=1)
+    if len(b) > 1:
+        d = np.linalg.norm(b[:, None] - b[None], axis=-1) + np.diag(np.full(len(b), np.inf))
+        r = np.minimum(r, d.min(axis=1))
+    return 0.5 * r
+
+
+# ---------------------------------------------------------------------- the panel kernel
+
+
+def _one_panel(a, b):
+    a, b = np.asarray(a, float), np.asarray(b, float)
+    d = b - a
+    L = np.hypot(*d)
+    return np.array([a[0], b[0]]), np.array([a[1], b[1]]), np.array([d[0] / L]), np.array([d[1] / L]), np.array([L])
+
+
+def _quad_kernel(x, a, b):
+    """W and ∇W of one panel by adaptive quadrature."""
+    a, b, x = (np.asarray(v, float) for v in (a, b, x))
+    L = np.hypot(*(b - a))
+    t = (b - a) / L
+    proj = float(np.clip((x - a) @ t, 0.0, L))
+    cuts = [0.0, proj, L] if 0.0 < proj < L else [0.0, L]  # split at the near-singular point
+
+    def integrate(f):
+        return sum(
+            quad(lambda s: f(x - a - s * t), lo, hi, limit=400, epsabs=1e-13, epsrel=1e-12)[0]
+            for lo, hi in zip(cuts[:-1], cuts[1:])
+        )
+
+    W = integrate(lambda r: math.log(r @ r))
+    gx = integrate(lambda r: 2.0 * r[0] / (r @ r))
+    gy = integrate(lambda r: 2.0 * r[1] / (r @ r))
+    return W, np.array([gx, gy])
+
+
+@pytest.mark.parametrize(
+    "a, b",
+    [((0.0, 0.0), (1.0, 0.0)), ((-1.0, -1.0), (-1.0, 1.0)), ((3.0, 2.0), (1.5, 4.0)), ((0.2, -0.7), (-2.0, -0.1))],
+)
+def test_kernel_matches_quadrature(a, b):
+    """Closed-form W and ∇W agree with quadrature everywhere off the panel, across every atan branch."""
+    geom = _one_panel(a, b)
+    rng = np.random.default_rng(7)
+    a_, b_ = np.asarray(a), np.asarray(b)
+    mid, d = 0.5 * (a_ + b_), b_ - a_
+    nrm = np.array([-d[1], d[0]]) / np.hypot(*d)
+    pts = [mid + 0.3 * nrm, mid - 0.3 * nrm, mid + 1e-3 * nrm, mid - 1e-3 * nrm,  # just above / below
+           a_ - 0.5 * d, b_ + 0.5 * d, a_ - 0.5 * d + 1e-4 * nrm, b_ + 0.5 * d - 1e-4 * nrm,  # on the line
+           np.array([0.05, 0.3])]  # sees the panel (-1,-1)-(-1,1) across the atan2 cut
+    pts += list(rng.uniform(-4, 4, size=(20, 2)))
+    for x in pts:
+        W, dl, th, _, _ = _kernel(np.array([x[0]]), np.array([x[1]]), *geom, derivs=True)
+        t = d / np.hypot(*d)
+        grad = dl[0, 0] * t + 2.0 * th[0, 0] * np.array([-t[1], t[0]])
+        Wq, gq = _quad_kernel(x, a, b)
+        assert W[0, 0] == pytest.approx(Wq, abs=1e-9)
+        np.testing.assert_allclose(grad, gq, atol=1e-8 * max(1.0, np.abs(gq).max()))
+
+
+def test_kernel_hessian_matches_finite_differences():
+    geom = _one_panel((0.5, -0.3), (-1.0, 1.2))
+    rng = np.random.default_rng(3)
+    h = 1e-5
+    for x in rng.uniform(-3, 3, size=(30, 2)):
+        def grad(p):
+            _, dl, th, _, _ = _kernel(np.array([p[0]]), np.array([p[1]]), *geom, derivs=True)
+            tx, ty = geom[2][0], geom[3][0]
+            return dl[0, 0] * np.array([tx, ty]) + 2.0 * th[0, 0] * np.array([-ty, tx])
+
+        _, _, _, A, B = _kernel(np.array([x[0]]), np.array([x[1]]), *geom, derivs=True)
+        tx, ty = geom[2][0], geom[3][0]
+        c2, s2 = tx * tx - ty * ty, 2 * tx * ty
+        hxx, hxy = A[0, 0] * c2 - B[0, 0] * s2, A[0, 0] * s2 + B[0, 0] * c2
+        fd = np.column_stack([(grad(x + h * e) - grad(x - h * e)) / (2 * h) for e in np.eye(2)])
+        np.testing.assert_allclose([[hxx, hxy], [hxy, -hxx]], fd, atol=1e-6 * max(1.0, np.abs(fd).max()))
+
+
+# ---------------------------------------------------------------------- the map
+
+
+def test_boundary_conditions(rooms):
+    """Outer boundary on the unit circle, every hole collapsed to its b_ℓ (between collocation points too)."""
+    free, pw = rooms
+    outer, holes = pw.boundary_errors(samples_per_panel=8)
+    assert len(pw.hole_points) == len(free.interiors) == 4
+    assert outer < 0.08  # largest at the convex corners, where the map is degenerate; see refinement test
+    assert holes.max() < 1e-3
+    assert np.all(holes < 0.05 * separation(pw.hole_points))
+    assert np.all(np.linalg.norm(pw.hole_points, axis=1) < 0.99)
+    # hole_points[ℓ] belongs to free_space.interiors[ℓ] of the caller's polygon
+    for k, ring in enumerate(free.interiors):
+        vals = pw(np.asarray(ring.coords))
+        assert np.abs(vals - pw.hole_points[k]).max() < 2e-3
+    # the outer boundary is traversed counter-clockwise: the argument of H increases along the ring
+    mids = 0.5 * (pw.panel_start + pw.panel_end)[pw.panel_ring == 0]
+    ang = np.unwrap(np.arctan2(*pw(mids)[:, ::-1].T))
+    assert ang[-1] - ang[0] == pytest.approx(2 * np.pi, abs=0.1)
+    assert np.all(np.diff(ang) > 0)
+
+
+def test_boundary_error_shrinks_and_b_converges_under_refinement():
+    free = two_rooms_free_space()
+    maps = [
+        PointWorldMap.build(free, clearance_fraction=0.5 / k, curvature_fraction=1.0 / k, max_panel=4.0 / k)
+        for k in (1, 2, 4, 8)
+    ]
+    counts = [m.n_panels for m in maps]
+    assert counts == sorted(counts) and counts[-1] > 3 * counts[0]
+    outer = [m.boundary_errors()[0] for m in maps]
+    holes = [m.boundary_errors()[1].max() for m in maps]
+    assert all(o2 < o1 for o1, o2 in zip(outer, outer[1:]))
+    assert all(h2 < h1 for h1, h2 in zip(holes, holes[1:]))
+    ref = maps[-1]
+    b_err = [np.abs(m.hole_points - ref.hole_points).max() for m in maps[:-1]]
+    x = np.array([[15.0, 15.0], [30.0, 25.0], [25.0, 5.0]])
+    h_err = [np.abs(m(x) - ref(x)).max() for m in maps[:-1]]
+    # second order in the panel length: each halving divides the error by about 4 (at least 2.5 asserted)
+    assert all(e2 < e1 / 2.5 for e1, e2 in zip(b_err, b_err[1:]))
+    assert all(e2 < e1 / 2.5 for e1, e2 in zip(h_err, h_err[1:]))
+    assert b_err[-1] < 1e-4
+
+
+def test_office_map_converges_under_refinement(office):
+    """b_ℓ of the office map move less as panels refine; at the defaults they are within 5 % of their
+    separation r̄_ℓ of the refined values (the barrier radius of the navigation function scales with r̄)."""
+    free, pw = office
+    diam = math.hypot(200.0, 200.0)
+    coarse, fine = (
+        PointWorldMap.build(free, clearance_fraction=0.25 * k, curvature_fraction=0.5 * k, max_panel=diam / 25 * k)
+        for k in (2.0, 0.5)
+    )
+    assert coarse.n_panels < pw.n_panels < fine.n_panels
+    sep = separation(fine.hole_points)
+    err_coarse = np.linalg.norm(coarse.hole_points - fine.hole_points, axis=1)
+    err_default = np.linalg.norm(pw.hole_points - fine.hole_points, axis=1)
+    assert err_default.max() < 0.6 * err_coarse.max()
+    assert np.all(err_default < 0.05 * sep)
+
+
+@pytest.mark.parametrize("which", ["rooms", "office"])
+def test_inside_disk_and_orientation_preserving_away_from_margin(which, request):
+    free, pw = request.getfixturevalue(which)
+    spacing = 0.25 if which == "rooms" else 1.5
+    pts = grid_away_from_margin(pw, free, spacing)
+    assert len(pts) > 3000
+    H, J, _ = pw.evaluate(pts)
+    assert np.linalg.norm(H, axis=1).max() < 1.0
+    assert np.linalg.det(J).min() > 0.0
+
+
+def test_derivatives_match_finite_differences(office):
+    free, pw = office
+    rng = np.random.default_rng(11)
+    pts = rng.uniform(0, 200, size=(400, 2))
+    pts = pts[shapely.contains_xy(free, pts[:, 0], pts[:, 1])][:60]
+    h = 1e-4  # metres; central differences are accurate to O(h²) ≈ 1e-8 relative here
+    H, J, Hs = pw.evaluate(pts)
+    for p, Jp, Hp in zip(pts, J, Hs):
+        Jfd = np.column_stack([(pw(p + h * e) - pw(p - h * e)) / (2 * h) for e in np.eye(2)])
+        Hfd = np.stack([(pw.jacobian(p + h * e) - pw.jacobian(p - h * e)) / (2 * h) for e in np.eye(2)], axis=2)
+        np.testing.assert_allclose(Jp, Jfd, rtol=0, atol=1e-6 * np.abs(Jp).max())
+        np.testing.assert_allclose(Hp, Hfd, rtol=0, atol=1e-5 * np.abs(Hp).max())
+    # Hessians are symmetric in (i, j) and each component is harmonic (trace zero)
+    np.testing.assert_allclose(Hs, np.swapaxes(Hs, 2, 3), atol=0)
+    np.testing.assert_allclose(np.trace(Hs, axis1=2, axis2=3), 0.0, atol=1e-12 * np.abs(Hs).max())
+
+
+def test_batch_matches_single_point(rooms):
+    _, pw = rooms
+    pts = np.array([[3.0, 3.0], [15.0, 15.0], [25.0, 28.0], [37.0, 10.0]])
+    H, J, Hs = pw.evaluate(pts)
+    for k, p in enumerate(pts):
+        h1, j1, hs1 = pw.evaluate(p)
+        np.testing.assert_allclose(h1, H[k], rtol=1e-13, atol=1e-15)
+        np.testing.assert_allclose(j1, J[k], rtol=1e-12, atol=1e-16)
+        np.testing.assert_allclose(hs1, Hs[k], rtol=1e-11, atol=1e-16)
+        np.testing.assert_allclose(pw(p), H[k], rtol=1e-13, atol=1e-15)
+        np.testing.assert_allclose(pw.jacobian(p), J[k], rtol=1e-12, atol=1e-16)
+        np.testing.assert_allclose(pw.hessians(p), Hs[k], rtol=1e-11, atol=1e-16)
+
+
+def test_inverse_round_trip(rooms):
+    free, pw = rooms
+    pts = grid_away_from_margin(pw, free, 3.0)
+    for x in pts[::7]:
+        chi = pw(x)
+        x_back = pw.inverse(chi)
+        np.testing.assert_allclose(pw(x_back), chi, atol=1e-10)
+        np.testing.assert_allclose(x_back, x, atol=1e-6)
+
+
+def test_ring_orientation_and_start_do_not_matter(rooms):
+    free, pw = rooms
+    ext = list(free.exterior.coords)[:-1]
+    rotated = Polygon(ext[3:] + ext[:3], [list(h.coords)[::-1] for h in free.interiors])
+    reversed_ = Polygon(ext[::-1], [list(h.coords) for h in free.interiors])
+    x = np.array([[12.0, 14.0], [33.0, 16.0]])
+    for other in (rotated, reversed_):
+        pw2 = PointWorldMap.build(other)
+        np.testing.assert_allclose(pw2(x), pw(x), atol=1e-9)
+        np.testing.assert_allclose(pw2.hole_points, pw.hole_points, atol=1e-9)
+
+
+def test_office_panel_budget(office):
+    free, pw = office
+    assert 300 <= pw.n_panels <= 2000
+    assert len(pw.hole_points) == len(free.interiors) == 20
+    # panels graded: long in open space, short near doors and small obstacles
+    assert pw.panel_length.max() > 20 * pw.panel_length.min()
+    assert pw.margin == pytest.approx(pw.panel_length.max())
+
+
+def test_user_errors():
+    with pytest.raises(UserError, match="empty"):
+        PointWorldMap.build(Polygon())
+    two = MultiPolygon([box(0, 0, 1, 1), box(2, 0, 3, 1)])
+    with pytest.raises(UserError, match="not one connected polygon"):
+        PointWorldMap.build(two)
+    with pytest.raises(UserError, match="invalid"):
+        PointWorldMap.build(Polygon([(0, 0), (2, 2), (2, 0), (0, 2)]))
+    with pytest.raises(UserError, match="Polygon"):
+        PointWorldMap.build(Point(0, 0))
+    for msg in ("empty", "not one connected polygon"):
+        try:
+            PointWorldMap.build(Polygon() if msg == "empty" else two)
+        except UserError as err:
+            assert "\n" not in str(err)
+    # a single-part MultiPolygon is accepted
+    assert PointWorldMap.build(MultiPolygon([box(0, 0, 4, 3)])).n_panels > 0
+
+
+def test_tiny_hole_gets_a_proper_polygon():
+    """A hole shorter than min_panel still becomes (at least) a triangle of panels and collapses to b."""
+    free = box(0, 0, 10, 10).difference(Point(5, 5).buffer(0.001))
+    pw = PointWorldMap.build(free)
+    assert np.sum(pw.panel_ring == 1) >= 3
+    assert np.all(np.isfinite(pw.sigma))
+    assert pw.boundary_errors()[1][0] < 1e-3
+    assert np.linalg.norm(pw(np.array([5.0, 5.2])) - pw.hole_points[0]) < 0.1
+
+
+@st.composite
+def random_layouts(draw):
+    """A rectangular room with up to four disjoint boxes and disks well inside."""
+    w = draw(st.floats(8.0, 40.0))
+    h = draw(st.floats(8.0, 40.0))
+    n = draw(st.integers(0, 4))
+    shapes = []
+    for _ in range(n):
+        cx = draw(st.floats(0.2 * w, 0.8 * w))
+        cy = draw(st.floats(0.2 * h, 0.8 * h))
+        r = draw(st.floats(0.3, 0.08 * min(w, h)))
+        g = Point(cx, cy).buffer(r) if draw(st.booleans()) else box(cx - r, cy - 0.5 * r, cx + r, cy + 0.5 * r)
+        if all(g.distance(o) > 0.5 for o in shapes):
+            shapes.append(g)
+    free = box(0, 0, w, h)
+    for g in shapes:
+        free = free.difference(g)
+    return free
+
+
+@settings(max_examples=12, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(random_layouts())
+def test_random_layouts_are_valid_maps(free):
+    pw = PointWorldMap.build(free)
+    assert len(pw.hole_points) == len(free.interiors)
+    outer, holes = pw.boundary_errors()
+    assert outer < 0.1
+    # each hole's image is a blob much smaller than its separation from the other b's and the circle
+    assert np.all(holes < 0.1 * separation(pw.hole_points))
+    pts = grid_away_from_margin(pw, free, min(free.bounds[2], free.bounds[3]) / 40)
+    H, J, _ = pw.evaluate(pts)
+    assert np.linalg.norm(H, axis=1).max() < 1.0
+    assert np.linalg.det(J).min() > 0.0
+    if len(pw.hole_points):
+        assert np.linalg.norm(pw.hole_points, axis=1).max() < 1.0
