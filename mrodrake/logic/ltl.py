@@ -108,18 +108,18 @@ def _make(kind: str, args: tuple = (), name: str | None = None) -> Formula:
     s(f, "_size", 1 + sum(a._size for a in args))
     text = _render(kind, args, name)
     s(f, "_text", text)
-    text = (text, 0)
+    # Operand order of & and |: constants, then literals by proposition name, then the rest by text.
     if kind in (TT, FF):
-        cat, text = 0, ("", 0)
+        order = (0, "", 0)
     elif kind == AP:
-        cat, text = 1, (name, 0)
+        order = (1, name, 0)
     elif kind == NOT and args[0].kind == AP:
-        cat, text = 1, (args[0].name, 1)
+        order = (1, args[0].name, 1)
     elif kind in (AND, OR, XOR, IMPLIES, EQUIV, NOT):
-        cat = 2
+        order = (2, text, 0)
     else:
-        cat = 3
-    s(f, "_sortkey", (cat, text))
+        order = (3, text, 0)
+    s(f, "_sortkey", order)
     _TABLE[key] = f
     return f
 
@@ -713,7 +713,8 @@ def simplify(f: Formula | str) -> Formula:
     ``F(a & s) = F a & s`` and ``G(a | s) = G a | s`` for suffix-independent ``s``; ``a & !a = false``;
     ``G a & G b = G(a & b)``; ``F a | F b = F(a | b)``; ``X a & X b = X(a & b)``, ``X a | X b = X(a | b)``;
     ``(a U c) & (b U c) = (a & b) U c``; ``(a R b) & (a R c) = a R (b & c)``; ``G F a | G F b = G F(a | b)``;
-    ``F G a & F G b = F G(a & b)``.
+    ``F G a & F G b = F G(a & b)``; ``a U (b | G a) = a W b``, ``a R (b & F a) = a M b``;
+    ``G a | a U c = a W c``; ``G a | F(!a & e) = a W (!a & e)`` for pure eventualities ``e``.
     """
     if isinstance(f, str):
         f = parse(f)
@@ -739,8 +740,8 @@ def _simp(f: Formula) -> Formula:
     return r
 
 
-def _merge_by(kind: str, parts: list[Formula], outer: str, combine: Callable) -> list[Formula]:
-    """Merge operands of the same outer kind: e.g. G a & G b -> G(a & b)."""
+def _merge_by(parts: list[Formula], outer: str, combine: Callable) -> list[Formula]:
+    """Merge the operands of kind ``outer`` into one: e.g. X a & X b -> X(a & b)."""
     group = [p for p in parts if p.kind == outer]
     if len(group) < 2:
         return parts
@@ -763,7 +764,7 @@ def _simp_node(k: str, a: tuple[Formula, ...]) -> Formula:
             gs = [p for p in parts if p.kind == ALWAYS and not is_eventual(p.args[0])]
             if len(gs) >= 2:
                 parts = [p for p in parts if p not in gs] + [G(And(*(p.args[0] for p in gs)))]
-            parts = _merge_by(k, parts, NEXT, lambda g: X(And(*(x.args[0] for x in g))))
+            parts = _merge_by(parts, NEXT, lambda g: X(And(*(x.args[0] for x in g))))
             fg = [p for p in parts if p.kind == EVENTUALLY and p.args[0].kind == ALWAYS]
             if len(fg) >= 2:
                 parts = [p for p in parts if p not in fg] + [F(G(And(*(p.args[0].args[0] for p in fg))))]
@@ -773,12 +774,13 @@ def _simp_node(k: str, a: tuple[Formula, ...]) -> Formula:
             fs = [p for p in parts if p.kind == EVENTUALLY and not is_universal(p.args[0])]
             if len(fs) >= 2:
                 parts = [p for p in parts if p not in fs] + [F(Or(*(p.args[0] for p in fs)))]
-            parts = _merge_by(k, parts, NEXT, lambda g: X(Or(*(x.args[0] for x in g))))
+            parts = _merge_by(parts, NEXT, lambda g: X(Or(*(x.args[0] for x in g))))
             gf = [p for p in parts if p.kind == ALWAYS and p.args[0].kind == EVENTUALLY]
             if len(gf) >= 2:
                 parts = [p for p in parts if p not in gf] + [G(F(Or(*(p.args[0].args[0] for p in gf))))]
             parts = _merge_binary(parts, k, UNTIL, 0, lambda x, y: U(y.args[0], Or(x, y.args[1])))
             parts = _merge_binary(parts, k, RELEASE, 1, lambda x, y: R(Or(x, y.args[0]), y.args[1]))
+            parts = _weak_until_from_or(parts)
         return rebuild(k, parts)
     if k == NEXT:
         x = a[0]
@@ -818,14 +820,46 @@ def _simp_node(k: str, a: tuple[Formula, ...]) -> Formula:
                 return rebuild(x.kind, [_simp_node(ALWAYS, (rebuild(x.kind, inner),))] + outer)
         return G(x)
     if k == UNTIL:
-        if is_eventual(a[1]):
-            return a[1]
-        return U(*a)
+        x, y = a
+        if is_eventual(y):
+            return y
+        if y is G(x):
+            return y
+        if y.kind == OR and G(x) in y.args:  # a U (b | G a) = a W b
+            return W(x, Or(*(z for z in y.args if z is not G(x))))
+        return U(x, y)
     if k == RELEASE:
-        if is_universal(a[1]):
-            return a[1]
-        return R(*a)
+        x, y = a
+        if is_universal(y):
+            return y
+        if y is F(x):
+            return y
+        if y.kind == AND and F(x) in y.args:  # a R (b & F a) = a M b
+            return M(x, And(*(z for z in y.args if z is not F(x))))
+        return R(x, y)
     return rebuild(k, a)
+
+
+def _weak_until_from_or(parts: list[Formula]) -> list[Formula]:
+    """``G a | a U c = a W c``; ``G a | F(!a & e) = a W (!a & e)`` for pure eventualities ``e``."""
+    for gpart in parts:
+        if gpart.kind != ALWAYS:
+            continue
+        a = gpart.args[0]
+        na = nnf(a, True)
+        for upart in parts:
+            if upart.kind == UNTIL and upart.args[0] is a:  # G a | a U c = a W c
+                rest = [x for x in parts if x is not gpart and x is not upart]
+                return rest + [W(a, upart.args[1])]
+        for fpart in parts:
+            if fpart.kind != EVENTUALLY:
+                continue
+            c = fpart.args[0]
+            conj = c.args if c.kind == AND else (c,)
+            if na in conj and all(x is na or is_eventual(x) for x in conj):
+                rest = [x for x in parts if x is not gpart and x is not fpart]
+                return rest + [W(a, c)]
+    return parts
 
 
 def _merge_binary(parts: list[Formula], outer: str, kind: str, shared: int, combine) -> list[Formula]:
