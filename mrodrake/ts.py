@@ -280,25 +280,28 @@ class TransitionSystem:
         """
         N, M, K = self.N, self.M, self.K
         R, O, G = s[:N], s[N : N + M], s[N + M :]
-        teams: list[list[int]] = [[] for _ in range(M)]
+        team_power = [0.0] * M
         for i in range(N):
             if G[i] >= 0:
-                teams[G[i]].append(i)
+                team_power[G[i]] += self.power[i]
         obj_opts = []
         for j in range(M):
-            if teams[j] and self.team_power_ok(teams[j], j):
+            if team_power[j] > 0 and team_power[j] >= self.required_power[j]:
                 obj_opts.append([O[j]] + [k for k in range(K) if k != O[j]])
             else:
                 obj_opts.append([O[j]])
         for dests in itertools.product(*obj_opts):
+            staying: list[tuple[int, ...]] = [()] * K
+            for j in range(M):
+                if dests[j] == O[j]:
+                    staying[O[j]] += (j,)
             keys = []
             for i in range(N):
                 g = G[i]
-                if g >= 0:
-                    keys.append((dests[g], g, True) if dests[g] != O[g] else (R[i], g, None))
+                if g < 0:
+                    keys.append((R[i], -1, staying[R[i]]))
                 else:
-                    r = R[i]
-                    keys.append((r, -1, tuple(j for j in range(M) if O[j] == r and dests[j] == r)))
+                    keys.append((dests[g], g, True) if dests[g] != O[g] else (R[i], g, None))
             yield dests, keys
 
     def option_pairs(self, key: tuple) -> list[tuple[int, int]]:
