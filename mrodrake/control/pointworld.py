@@ -350,6 +350,8 @@ class PointWorldMap:
         hole_refinement: float = 2.0,
         grading: float = 0.4,
         curvature_fraction: float = 0.5,
+        blob_tolerance: float = 0.05,
+        max_refinements: int = 3,
     ) -> "PointWorldMap":
         """Discretise the boundary of ``free_space`` (a shapely Polygon with holes) and solve for H.
 
@@ -358,7 +360,10 @@ class PointWorldMap:
         ``clearance_fraction`` × the length of a straight stretch between sharp corners, growing at most
         ``grading`` per unit distance, clipped to [min_panel, max_panel] (defaults: diameter/25 and
         diameter/2000).  Holes are refined ``hole_refinement`` times more (their boundary error, relative to
-        the separation of the points b_ℓ, scales with the product of the two fractions).
+        the separation of the points b_ℓ, scales with the product of the two fractions).  After each solve, a
+        hole whose image (max |H − b_ℓ| on its boundary) exceeds ``blob_tolerance`` × its separation (half the
+        distance from b_ℓ to the nearest other b or to the unit circle) gets twice finer panels, at most
+        ``max_refinements`` times, so that every hole really collapses to (nearly) a point.
         """
         t0 = time.perf_counter()
         poly = _validate(free_space)
@@ -374,17 +379,33 @@ class PointWorldMap:
             raise ValueError("need clearance_fraction in (0, 1], grading, curvature_fraction > 0, hole_refinement >= 1")
         poly = orient(poly, sign=1.0)  # exterior counter-clockwise, holes clockwise: free side on the left
         outer = np.asarray(poly.exterior.coords)
+        factors = [float(hole_refinement)] * len(poly.interiors)
+        for attempt in range(max_refinements + 1):
+            pw = cls._solve(poly, outer, factors, max_panel, min_panel, clearance_fraction, grading,
+                            curvature_fraction)
+            if not factors:
+                break
+            coarse = pw._hole_blobs() > blob_tolerance * _separation(pw.hole_points)
+            if attempt == max_refinements or not np.any(coarse):
+                break
+            factors = [f * 2.0 if c else f for f, c in zip(factors, coarse)]
+        pw.build_seconds = time.perf_counter() - t0
+        return pw
+
+    @classmethod
+    def _solve(cls, poly, outer, factors, max_panel, min_panel, clearance_fraction, grading, curvature_fraction):
+        """One discretisation (hole ℓ refined ``factors[ℓ]`` times) and solve."""
+        t0 = time.perf_counter()
         rings = [_prepare_ring(outer, is_exterior=True, curvature_fraction=curvature_fraction)]
-        hole_curvature = curvature_fraction / hole_refinement
         rings += [
-            _prepare_ring(np.asarray(h.coords), is_exterior=False, curvature_fraction=hole_curvature)
-            for h in poly.interiors
+            _prepare_ring(np.asarray(h.coords), is_exterior=False, curvature_fraction=curvature_fraction / f)
+            for h, f in zip(poly.interiors, factors)
         ]
         a_xy, b_xy, rid, s_a, s_b = _discretise(
             rings,
             max_panel=max_panel,
             min_panel=min_panel,
-            fractions=[clearance_fraction] + [clearance_fraction / hole_refinement] * (len(rings) - 1),
+            fractions=[clearance_fraction] + [clearance_fraction / f for f in factors],
             grading=grading,
         )
         n = len(a_xy)
@@ -525,6 +546,19 @@ class PointWorldMap:
         return self._eval(pts)
 
     # ------------------------------------------------------------------ diagnostics and inverse
+    def _hole_blobs(self, samples_per_panel: int = 2) -> np.ndarray:
+        """Per hole ℓ: max |H − b_ℓ| sampled on its panels (the size of the hole's image)."""
+        on = self.panel_ring > 0
+        frac = (np.arange(samples_per_panel) + 0.5) / samples_per_panel
+        a, b = self.panel_start[on], self.panel_end[on]
+        pts = a[:, None, :] + frac[None, :, None] * (b - a)[:, None, :]
+        vals = self(pts.reshape(-1, 2)).reshape(len(a), samples_per_panel, 2)
+        ring = self.panel_ring[on] - 1
+        err = np.max(np.linalg.norm(vals - self.hole_points[ring][:, None, :], axis=-1), axis=1)
+        blobs = np.zeros(len(self.hole_points))
+        np.maximum.at(blobs, ring, err)
+        return blobs
+
     def boundary_errors(self, samples_per_panel: int = 4) -> tuple[float, np.ndarray]:
         """Deviation from the boundary data between collocation points.
 
@@ -591,6 +625,15 @@ class PointWorldMap:
         if nres > 1e3 * tol:
             raise RuntimeError(f"inverse did not converge: |H(x) - chi| = {nres:.3g}")
         return x
+
+
+def _separation(b: np.ndarray) -> np.ndarray:
+    """Per point b_ℓ: half the distance to the nearest other b or to the unit circle."""
+    r = 1.0 - np.linalg.norm(b, axis=1)
+    if len(b) > 1:
+        d = np.linalg.norm(b[:, None] - b[None], axis=-1) + np.diag(np.full(len(b), np.inf))
+        r = np.minimum(r, d.min(axis=1))
+    return 0.5 * r
 
 
 def _validate(free_space) -> Polygon:

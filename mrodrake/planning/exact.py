@@ -1,0 +1,218 @@
+"""Exact optimal prefix-suffix planning on the explicit product (paper Section III-B, graph search).
+
+The optimal plan in prefix-suffix form minimises ``cost(prefix) + cost(suffix)`` over the accepting
+product states ``a``: the prefix is a shortest path from the initial product state to ``a`` and the
+suffix a shortest non-empty cycle through ``a`` (Smith et al. 2011; Ulusoy et al. 2014).  We
+
+1. prune the NBA (guards no TS label satisfies) and keep the NBA states on some path from the initial
+   state to an accepting cycle (:func:`~mrodrake.planning.product.useful_states`);
+2. build the reachable product as a CSR graph (:class:`~mrodrake.planning.product.ExplicitProduct`)
+   and run one Dijkstra from the initial node (``scipy.sparse.csgraph``);
+3. keep the reachable accepting nodes that lie in a non-trivial strongly connected component and give
+   each a lower bound on its cycle, ``LB(a) = min_{a→y} χ(a, y) + d(y, A)`` (distance back to *any*
+   accepting node: one multi-source Dijkstra on the reversed graph);
+4. visit candidates by increasing ``d(init, a) + LB(a)`` and stop once that bound reaches the best
+   total found; each cycle is a Dijkstra from ``a`` limited to ``best − d(init, a)``.
+
+When no candidate exists the task is unsatisfiable on this TS (a proof: the whole reachable product was
+searched).  :func:`check_power` detects the common cause "an object must move but no team is powerful
+enough" before any search.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from typing import Callable
+
+import numpy as np
+from scipy.sparse.csgraph import connected_components, dijkstra
+
+from mrodrake.errors import UserError
+from mrodrake.logic.buchi import NBA
+from mrodrake.planning.product import Product, prune_nba, useful_states
+from mrodrake.ts import TransitionSystem
+
+
+# ---------------------------------------------------------------------------------------------- power
+def max_team_power(ts: TransitionSystem, j: int) -> tuple[float, tuple[int, ...]]:
+    """Largest power Σζ_i of a team that can grasp object j in some region (its covering disk fits),
+    with the team.  Enumerates teams for N ≤ 16; beyond that the bound Σ_i ζ_i over all robots."""
+    N = ts.N
+    if N > 16:
+        return float(sum(ts.power)), tuple(range(N))
+    teams = []
+    for mask in range(1, 1 << N):
+        team = tuple(i for i in range(N) if mask >> i & 1)
+        teams.append((sum(ts.power[i] for i in team), team))
+    teams.sort(key=lambda x: (-x[0], len(x[1]), x[1]))
+    fitted: dict[tuple, bool] = {}
+    for power, team in teams:
+        key = tuple(sorted(ts.robot_radius[i] for i in team))
+        ok = fitted.get(key)
+        if ok is None:
+            r = ts.covering_radius(j, team)
+            ok = any(ts.region_fits(k, [r]) for k in range(ts.K))
+            fitted[key] = ok
+        if ok:
+            return float(power), team
+    return 0.0, ()
+
+
+def immovable_objects(ts: TransitionSystem) -> dict[int, tuple[float, tuple[int, ...]]]:
+    """Objects no team can transport (Λ fails for every team that fits): j -> (max power, that team)."""
+    out = {}
+    for j in range(ts.M):
+        power, team = max_team_power(ts, j)
+        if power < ts.required_power[j]:
+            out[j] = (power, team)
+    return out
+
+
+def check_power(ts: TransitionSystem, nba: NBA) -> None:
+    """Raise a one-line UserError when the task needs an object to move that no team can move.
+
+    Static check: with every immovable object fixed in its initial region, the pruned NBA has no
+    accepting cycle reachable from its initial state, while without fixing them it has one.
+    """
+    stuck = immovable_objects(ts)
+    if not stuck:
+        return
+    if not useful_states(prune_nba(nba, ts)):
+        return  # unsatisfiable for another reason; the planner reports it
+    N = ts.N
+    init = ts.initial
+
+    def empty_with(js) -> bool:
+        fixed = {N + j: init[N + j] for j in js}
+        return not useful_states(prune_nba(nba, ts, fixed))
+
+    if not empty_with(stuck):
+        return
+    culprits = [j for j in sorted(stuck) if empty_with([j])] or sorted(stuck)
+    j = culprits[0]
+    power, team = stuck[j]
+    who = "+".join(ts.robot_names[i] for i in team) if team else "none"
+    others = f" (also: {', '.join(ts.object_names[c] for c in culprits[1:])})" if len(culprits) > 1 else ""
+    raise UserError(
+        f"task is unsatisfiable: object {ts.object_names[j]} must leave region "
+        f"{ts.region_names[init[N + j]]} but needs power {ts.required_power[j]:g} and the maximum team "
+        f"power is {power:g} (team {who}){others}"
+    )
+
+
+# ---------------------------------------------------------------------------------------------- search
+@dataclass
+class ExactResult:
+    """Optimal lasso as product nodes; ``stats`` holds sizes and timings."""
+
+    prefix: list
+    suffix: list
+    prefix_cost: float
+    suffix_cost: float
+    stats: dict = field(default_factory=dict)
+
+
+def restrict_nba(nba: NBA, keep) -> NBA:
+    """The NBA with every edge into or out of a state outside ``keep`` removed (numbering kept)."""
+    keep = set(keep)
+    edges = [[(g, d) for g, d in row if q in keep and d in keep] for q, row in enumerate(nba.edges)]
+    return NBA(nba.ap, nba.initial, nba.accepting, edges)
+
+
+def _path(pred: np.ndarray, src: int, dst: int) -> list[int]:
+    out = [dst]
+    while out[-1] != src:
+        p = int(pred[out[-1]])
+        if p < 0:
+            raise RuntimeError("broken predecessor chain")
+        out.append(p)
+    return out[::-1]
+
+
+def solve_exact(ts: TransitionSystem, nba: NBA, progress: Callable[[str], None] | None = None) -> ExactResult:
+    """Optimal prefix-suffix plan (see the module docstring); UserError when the task is unsatisfiable."""
+    t0 = time.perf_counter()
+    check_power(ts, nba)
+    pruned = prune_nba(nba, ts)
+    useful = useful_states(pruned)
+    stats: dict = {"nba_states": nba.num_states, "nba_useful_states": len(useful)}
+    if nba.initial not in useful:
+        raise UserError(f"task is unsatisfiable: the NBA ({nba.num_states} states) has no accepting cycle "
+                        "whose guards a TS label can satisfy (searched the pruned NBA)")
+    small = restrict_nba(pruned, useful)
+    product = Product(ts, small)
+    if progress:
+        progress("building the transition system")
+    ets = ts.build()
+    if progress:
+        progress("building the product")
+    ep = product.build(ets)
+    g = ep.graph
+    n = ep.num_nodes
+    stats.update(ts_states=ets.num_states, ts_transitions=ets.num_transitions, product_nodes=n,
+                 product_edges=ep.num_edges, build_seconds=time.perf_counter() - t0)
+    if progress:
+        progress("shortest paths from the initial state")
+    d0, pred0 = dijkstra(g, directed=True, indices=ep.initial, return_predecessors=True)
+    reach = np.isfinite(d0)
+    n_reach = int(reach.sum())
+    stats["product_reachable_nodes"] = n_reach
+    acc = np.flatnonzero(ep.accepting_mask() & reach)
+    ncomp, comp = connected_components(g, directed=True, connection="strong")
+    sizes = np.bincount(comp, minlength=ncomp)
+    ind, ptr, w = g.indices, g.indptr, g.data
+    self_loop = np.array([a in ind[ptr[a]:ptr[a + 1]] for a in acc], dtype=bool)
+    acc = acc[(sizes[comp[acc]] > 1) | self_loop]
+    unsat = (f"task is unsatisfiable: no accepting cycle is reachable in the product of the TS "
+             f"({ets.num_states} states, {ets.num_transitions} transitions) and the NBA "
+             f"({nba.num_states} states); searched all {n_reach} reachable product states")
+    if len(acc) == 0:
+        stuck = immovable_objects(ts)
+        if stuck:
+            unsat += "; immovable objects: " + ", ".join(ts.object_names[j] for j in sorted(stuck))
+        raise UserError(unsat)
+    if progress:
+        progress(f"cycles through {len(acc)} accepting product states")
+    gt = g.T.tocsr()
+    dA = dijkstra(gt, directed=True, indices=acc, min_only=True)
+    # LB(a) = min over edges a -> y of chi(a, y) + d(y, A)
+    lb = np.full(len(acc), np.inf)
+    for k, a in enumerate(acc):
+        lo, hi = ptr[a], ptr[a + 1]
+        if hi > lo:
+            lb[k] = float(np.min(w[lo:hi] + dA[ind[lo:hi]]))
+    order = np.lexsort((acc, d0[acc] + lb))
+    best, best_a, best_cycle = np.inf, -1, None
+    cycles = 0
+    tin_ptr, tin_ind, tin_w = gt.indptr, gt.indices, gt.data
+    for k in order:
+        a = int(acc[k])
+        if d0[a] + lb[k] >= best:
+            break
+        limit = best - d0[a]
+        dist, pred = dijkstra(g, directed=True, indices=a, return_predecessors=True, limit=limit)
+        cycles += 1
+        lo, hi = tin_ptr[a], tin_ptr[a + 1]
+        preds = tin_ind[lo:hi]
+        tot = dist[preds] + tin_w[lo:hi]
+        if len(tot) == 0:
+            continue
+        i = int(np.argmin(tot))
+        c = float(tot[i])
+        if d0[a] + c < best:
+            p = int(preds[i])
+            best, best_a = float(d0[a] + c), a
+            best_cycle = _path(pred, a, p) if p != a else [a]
+    if best_a < 0:
+        raise UserError(unsat)
+    prefix_ids = _path(pred0, ep.initial, best_a)[:-1]
+    suffix_ids = best_cycle
+    node = ep.node
+    prefix = [node(v) for v in prefix_ids]
+    suffix = [node(v) for v in suffix_ids]
+    pc = sum(ts.cost(a[0], b[0]) for a, b in zip(prefix, prefix[1:] + suffix[:1]))
+    sc = sum(ts.cost(a[0], b[0]) for a, b in zip(suffix, suffix[1:] + suffix[:1]))
+    stats.update(accepting_candidates=int(len(acc)), cycle_searches=cycles,
+                 seconds=time.perf_counter() - t0)
+    return ExactResult(prefix, suffix, pc, sc, stats)

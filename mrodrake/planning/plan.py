@@ -1,0 +1,365 @@
+"""Plans in prefix-suffix form (paper Section III-B, Table I): the contract between planning and execution.
+
+A :class:`Plan` is the TS run ``prefix (suffix)^ω`` together with the NBA run that accepts its trace.
+The run is ``prefix + suffix + suffix + ...``: its first state is the TS's initial state (with the NBA's
+initial state), every state is reached from the one before it by one TS transition, the last prefix
+state steps to the first suffix state and the last suffix state steps back to the first suffix state;
+the trace of labels is ``labels(prefix) labels(suffix)^ω``.  Step ``k`` (1-based) goes from run state
+``k`` to run state ``k + 1``; the prefix has ``len(prefix)`` steps (the last one enters the suffix) and
+the suffix ``len(suffix)`` steps (the last one closes the cycle).  Costs are Σχ over those steps.
+
+JSON schema (``Plan.to_json``), version 1::
+
+    {
+      "format": "mrodrake.plan", "version": 1,
+      "scenario": "case_study_1",              # scenario name
+      "formula": "...",                         # the task formula as planned (macros expanded)
+      "planner": "stylus" | "exact",
+      "seed": 0 | null,                         # seed of the planner's random generator
+      "costs": {"prefix": 4554.5, "suffix": 2338.1, "total": 6892.6},
+      "prefix": [STATE, ...],                   # run states before the suffix (may be empty)
+      "suffix": [STATE, ...],                   # the repeated cycle (non-empty)
+      "actions": [                              # one entry per step, prefix steps first
+        {"step": 1, "part": "prefix",           # part of the step's source state
+         "from": 1, "to": 2,                    # 1-based run-state indices (the last step's "to" is
+                                                #   the index of the first suffix state)
+         "cost": 240.3,                         # χ of the step
+         "actions": [ACTION, ...]}              # empty list for the all-idle self-loop
+      ],
+      "stats": {...}                            # planner statistics (sizes, timings), informative
+    }
+    STATE  = {"robots": {"r1": "p1", ...}, "objects": {"o1": "p2", ...},
+              "grasps": {"r1": "o1" | null, ...}, "nba": <NBA state id>}
+    ACTION = {"type": "navigate", "robot": "r1", "from": "p1", "to": "p3", ...}
+           | {"type": "grasp", "robot": "r1", "object": "o1", ...}
+           | {"type": "release", "robot": "r1", "object": "o1", ...}
+           | {"type": "transport", "object": "o1", "team": ["r1", "r3"], "from": "p1", "to": "p4", ...}
+             each ACTION also has "text" (e.g. "transport o1 by r1+r3 p1->p4") and "paper"
+             (Table I notation, e.g. "π1 →T_{1,3},1 π4").
+
+NBA state ids refer to ``mrodrake.logic.buchi.translate(formula)`` re-indexed onto the TS propositions.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Callable, Sequence
+
+from mrodrake.errors import UserError
+from mrodrake.logic.buchi import NBA
+from mrodrake.ts import Action, Grasp, Navigate, Release, State, TransitionSystem, Transport
+
+FORMAT = "mrodrake.plan"
+VERSION = 1
+
+
+class PlanVerificationError(AssertionError):
+    """A plan failed its independent check: this is a bug in a planner, never a user error."""
+
+
+@dataclass
+class Plan:
+    """A verified prefix-suffix plan; ``prefix``/``suffix`` are lists of (TS state, NBA state)."""
+
+    scenario: str
+    formula: str
+    planner: str
+    seed: int | None
+    prefix: list[tuple[State, int]]
+    suffix: list[tuple[State, int]]
+    actions: list[tuple[Action, ...]]
+    step_costs: list[float]
+    ts: TransitionSystem | None = field(default=None, repr=False, compare=False)
+    stats: dict = field(default_factory=dict, compare=False)
+
+    # ------------------------------------------------------------------------------------ construction
+    @staticmethod
+    def from_runs(ts: TransitionSystem, scenario: str, formula: str, planner: str, seed: int | None,
+                  prefix: Sequence[tuple[State, int]], suffix: Sequence[tuple[State, int]],
+                  stats: dict | None = None) -> "Plan":
+        """A plan whose actions and step costs are derived from the states by the TS."""
+        run = list(prefix) + list(suffix)
+        if not suffix:
+            raise PlanVerificationError("a plan needs a non-empty suffix")
+        nxt = run[1:] + [suffix[0]]
+        actions = [ts.actions(a[0], b[0]) for a, b in zip(run, nxt)]
+        costs = [ts.cost(a[0], b[0]) for a, b in zip(run, nxt)]
+        return Plan(scenario, formula, planner, seed, [(tuple(s), int(q)) for s, q in prefix],
+                    [(tuple(s), int(q)) for s, q in suffix], actions, costs, ts, dict(stats or {}))
+
+    # ------------------------------------------------------------------------------------ properties
+    @property
+    def run(self) -> list[tuple[State, int]]:
+        return self.prefix + self.suffix
+
+    @property
+    def prefix_cost(self) -> float:
+        return float(sum(self.step_costs[: len(self.prefix)]))
+
+    @property
+    def suffix_cost(self) -> float:
+        return float(sum(self.step_costs[len(self.prefix):]))
+
+    @property
+    def total_cost(self) -> float:
+        return self.prefix_cost + self.suffix_cost
+
+    def steps(self):
+        """(step, part, from index, to index, source, target, actions, cost), 1-based indices."""
+        run = self.run
+        P, n = len(self.prefix), len(run)
+        for k in range(n):
+            to = k + 2 if k + 1 < n else P + 1
+            target = run[k + 1] if k + 1 < n else self.suffix[0]
+            yield (k + 1, "prefix" if k < P else "suffix", k + 1, to, run[k], target, self.actions[k],
+                   self.step_costs[k])
+
+    # ------------------------------------------------------------------------------------ verification
+    def verify(self, ts: TransitionSystem, nba: NBA, formula=None) -> None:
+        """Check the plan independently of the planner that made it (raises PlanVerificationError).
+
+        Every step is re-derived from the TS rules (``ts.check_transition``), the NBA run follows δ on
+        the source labels and visits an accepting state in the suffix, ``nba.accepts_lasso`` accepts the
+        lasso of labels, the stored actions and costs match the TS, and, given ``formula``, the lasso
+        satisfies it by the direct LTL semantics (:func:`mrodrake.logic.lasso.evaluate_lasso`).
+        """
+        if tuple(nba.ap) != tuple(ts.propositions):
+            raise ValueError("verify needs the NBA over the TS propositions")
+        if not self.suffix:
+            raise PlanVerificationError("empty suffix")
+        run = self.run
+        if run[0][0] != ts.initial:
+            raise PlanVerificationError("the run does not start in the TS's initial state")
+        if run[0][1] != nba.initial:
+            raise PlanVerificationError("the NBA run does not start in the NBA's initial state")
+        if len(self.actions) != len(run) or len(self.step_costs) != len(run):
+            raise PlanVerificationError("actions/costs do not have one entry per step")
+        for k, (s, q) in enumerate(run):
+            if not ts.is_valid(s):
+                raise PlanVerificationError(f"run state {k + 1} is not a valid TS state")
+            if not 0 <= q < nba.num_states:
+                raise PlanVerificationError(f"run state {k + 1}: NBA state {q} out of range")
+        for step, part, i, j, a, b, acts, cost in self.steps():
+            why = ts.check_transition(a[0], b[0])
+            if why is not None:
+                raise PlanVerificationError(f"step {step} ({part}) is not a TS transition: {why}")
+            if b[1] not in nba.successors(a[1], ts.label_mask(a[0])):
+                raise PlanVerificationError(f"step {step} ({part}): NBA {a[1]} -> {b[1]} is not enabled by "
+                                            "the label of the source state")
+            if tuple(acts) != tuple(ts.actions(a[0], b[0])):
+                raise PlanVerificationError(f"step {step} ({part}): stored actions differ from the TS's")
+            if not math.isclose(cost, ts.cost(a[0], b[0]), rel_tol=1e-9, abs_tol=1e-9):
+                raise PlanVerificationError(f"step {step} ({part}): stored cost differs from χ")
+        if not any(q in nba.accepting for _, q in self.suffix):
+            raise PlanVerificationError("the suffix visits no accepting NBA state")
+        pre = [ts.label_mask(s) for s, _ in self.prefix]
+        cyc = [ts.label_mask(s) for s, _ in self.suffix]
+        if not nba.accepts_lasso(pre, cyc):
+            raise PlanVerificationError("the NBA does not accept the lasso of labels")
+        if formula is not None:
+            from mrodrake.logic.lasso import evaluate_lasso
+
+            sets_pre = [ts.label(s) for s, _ in self.prefix]
+            sets_cyc = [ts.label(s) for s, _ in self.suffix]
+            if not evaluate_lasso(formula, sets_pre, sets_cyc):
+                raise PlanVerificationError("the lasso of labels does not satisfy the formula")
+
+    # ------------------------------------------------------------------------------------ JSON
+    def _ts(self) -> TransitionSystem:
+        if self.ts is None:
+            raise ValueError("this plan has no transition system attached")
+        return self.ts
+
+    def _action_dict(self, a: Action) -> dict:
+        ts = self._ts()
+        rn, on, gn = ts.robot_names, ts.object_names, ts.region_names
+        if isinstance(a, Navigate):
+            d = {"type": "navigate", "robot": rn[a.robot], "from": gn[a.src], "to": gn[a.dst]}
+        elif isinstance(a, Grasp):
+            d = {"type": "grasp", "robot": rn[a.robot], "object": on[a.obj]}
+        elif isinstance(a, Release):
+            d = {"type": "release", "robot": rn[a.robot], "object": on[a.obj]}
+        else:
+            d = {"type": "transport", "object": on[a.obj], "team": [rn[i] for i in a.team],
+                 "from": gn[a.src], "to": gn[a.dst]}
+        d["text"] = ts.format_action(a, "names")
+        d["paper"] = ts.format_action(a, "text")
+        return d
+
+    def to_dict(self) -> dict:
+        ts = self._ts()
+
+        def state(node):
+            return {**ts.state_dict(node[0]), "nba": int(node[1])}
+
+        steps = []
+        for step, part, i, j, a, b, acts, cost in self.steps():
+            steps.append({"step": step, "part": part, "from": i, "to": j, "cost": cost,
+                          "actions": [self._action_dict(x) for x in acts]})
+        return {
+            "format": FORMAT, "version": VERSION,
+            "scenario": self.scenario, "formula": self.formula, "planner": self.planner, "seed": self.seed,
+            "costs": {"prefix": self.prefix_cost, "suffix": self.suffix_cost, "total": self.total_cost},
+            "prefix": [state(x) for x in self.prefix],
+            "suffix": [state(x) for x in self.suffix],
+            "actions": steps,
+            "stats": _jsonable(self.stats),
+        }
+
+    def to_json(self, indent: int | None = 1) -> str:
+        return json.dumps(self.to_dict(), indent=indent, ensure_ascii=False)
+
+    def write(self, path: str | Path) -> None:
+        Path(path).write_text(self.to_json() + "\n", encoding="utf-8")
+
+    @staticmethod
+    def from_json(data: str | dict, ts: TransitionSystem, source: str = "plan") -> "Plan":
+        """Read a plan (JSON text or the parsed mapping) for the scenario of ``ts``; UserError on
+        malformed input.  The result is not verified: call :meth:`verify`."""
+        if isinstance(data, str):
+            try:
+                data = json.loads(data)
+            except json.JSONDecodeError as e:
+                raise UserError(f"{source}:{e.lineno}:{e.colno}: malformed JSON: {e.msg}") from None
+        if not isinstance(data, dict) or data.get("format") != FORMAT:
+            raise UserError(f"{source}: not an mrodrake plan (expected \"format\": \"{FORMAT}\")")
+        if data.get("version") != VERSION:
+            raise UserError(f"{source}: version: unsupported plan version {data.get('version')!r}")
+        for key in ("scenario", "formula", "planner", "prefix", "suffix", "actions"):
+            if key not in data:
+                raise UserError(f"{source}: {key}: missing required field")
+        if data["scenario"] != ts.scenario.name:
+            raise UserError(f"{source}: scenario: plan is for '{data['scenario']}', not '{ts.scenario.name}'")
+
+        def node(d, where):
+            try:
+                return ts.state_from_dict(d), int(d["nba"])
+            except (KeyError, TypeError, ValueError) as e:
+                raise UserError(f"{source}: {where}: malformed state ({type(e).__name__}: {e})") from None
+
+        prefix = [node(d, f"prefix[{k}]") for k, d in enumerate(data["prefix"])]
+        suffix = [node(d, f"suffix[{k}]") for k, d in enumerate(data["suffix"])]
+        steps = data["actions"]
+        if not isinstance(steps, list) or len(steps) != len(prefix) + len(suffix):
+            raise UserError(f"{source}: actions: expected one entry per step ({len(prefix) + len(suffix)})")
+        actions, costs = [], []
+        for k, st in enumerate(steps):
+            try:
+                actions.append(tuple(_action_from_dict(ts, a) for a in st["actions"]))
+                costs.append(float(st["cost"]))
+            except (KeyError, TypeError, ValueError) as e:
+                raise UserError(f"{source}: actions[{k}]: malformed step ({type(e).__name__}: {e})") from None
+        seed = data.get("seed")
+        return Plan(data["scenario"], data["formula"], data["planner"], seed if seed is None else int(seed),
+                    prefix, suffix, actions, costs, ts, dict(data.get("stats") or {}))
+
+    # ------------------------------------------------------------------------------------ table
+    def table(self):
+        """The plan as the paper's Table I: one row per step (pandas DataFrame)."""
+        import pandas as pd
+
+        ts = self._ts()
+        rows = []
+        for step, part, i, j, a, b, acts, cost in self.steps():
+            rows.append({
+                "step": step,
+                "part": part,
+                "from": i,
+                "to": j,
+                "actions": ", ".join(ts.format_action(x, "text") for x in acts) or "−",
+                "actions_names": "; ".join(ts.format_action(x, "names") for x in acts) or "idle",
+                "cost": cost,
+            })
+        return pd.DataFrame(rows, columns=["step", "part", "from", "to", "actions", "actions_names", "cost"])
+
+    def summary(self) -> str:
+        return (f"{self.planner}: cost {self.total_cost:.1f} (prefix {self.prefix_cost:.1f} over "
+                f"{len(self.prefix)} steps, suffix {self.suffix_cost:.1f} over {len(self.suffix)} steps)")
+
+
+def _action_from_dict(ts: TransitionSystem, d: dict) -> Action:
+    rob = {n: i for i, n in enumerate(ts.robot_names)}
+    obj = {n: j for j, n in enumerate(ts.object_names)}
+    reg = {n: k for k, n in enumerate(ts.region_names)}
+    kind = d["type"]
+    if kind == "navigate":
+        return Navigate(rob[d["robot"]], reg[d["from"]], reg[d["to"]])
+    if kind == "grasp":
+        return Grasp(rob[d["robot"]], obj[d["object"]])
+    if kind == "release":
+        return Release(rob[d["robot"]], obj[d["object"]])
+    if kind == "transport":
+        return Transport(obj[d["object"]], tuple(rob[r] for r in d["team"]), reg[d["from"]], reg[d["to"]])
+    raise ValueError(f"unknown action type {kind!r}")
+
+
+def _jsonable(x):
+    if isinstance(x, dict):
+        return {str(k): _jsonable(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [_jsonable(v) for v in x]
+    if isinstance(x, float) and not math.isfinite(x):
+        return None
+    if hasattr(x, "item"):
+        return x.item()
+    return x
+
+
+# ---------------------------------------------------------------------------------------- high level
+def task_nba(scenario, ts: TransitionSystem):
+    """(formula, NBA over ts.propositions) of the scenario's task."""
+    from mrodrake.logic.buchi import translate
+    from mrodrake.logic.ltl import parse
+
+    f = parse(scenario.task.formula, macros=dict(scenario.task.propositions), source="task.formula",
+              macro_prefix="task.propositions.")
+    return f, translate(f).with_ap(ts.propositions)
+
+
+def plan_scenario(scenario, planner: str = "stylus", seed: int | None = None, iterations: int | None = None,
+                  time_limit: float | None = None, progress: Callable[[dict], None] | None = None) -> Plan:
+    """Plan a scenario (a :class:`~mrodrake.scenario.Scenario` or a YAML path) and return the verified plan.
+
+    ``planner="stylus"``: STyLuS* with ``seed`` (default ``planning.seed``) for ``iterations`` (default
+    ``planning.iterations``) or ``time_limit`` seconds; ``"exact"``: optimal plan on the explicit product.
+    Unsatisfiable tasks and objects no team can move raise a one-line UserError.
+    """
+    import time
+
+    from mrodrake.planning.exact import check_power, solve_exact
+    from mrodrake.planning.stylus import Stylus
+    from mrodrake.scenario import Scenario, load_scenario
+
+    if not isinstance(scenario, Scenario):
+        scenario = load_scenario(scenario)
+    if planner not in ("stylus", "exact"):
+        raise UserError(f"--planner: unknown planner '{planner}' (expected 'stylus' or 'exact')")
+    if iterations is not None and iterations <= 0:
+        raise UserError(f"--iterations: must be > 0, got {iterations}")
+    if time_limit is not None and not time_limit > 0:
+        raise UserError(f"--time-limit: must be > 0, got {time_limit}")
+    t0 = time.perf_counter()
+    from mrodrake.ts import TransitionSystem
+
+    ts = TransitionSystem(scenario)
+    formula, nba = task_nba(scenario, ts)
+    check_power(ts, nba)
+    if planner == "exact":
+        res = solve_exact(ts, nba, progress=(lambda msg: progress({"message": msg})) if progress else None)
+        used_seed = None
+    else:
+        used_seed = scenario.planning.seed if seed is None else int(seed)
+        its = scenario.planning.iterations if iterations is None else int(iterations)
+        res = Stylus(ts, nba, seed=used_seed).run(its, time_limit=time_limit, progress=progress)
+    stats = dict(res.stats)
+    if getattr(res, "history", None):
+        stats["cost_history"] = [[round(t, 4), it, c] for t, it, c in res.history]
+    stats["nba_states"] = nba.num_states
+    stats["nba_edges"] = nba.num_edges
+    stats["total_seconds"] = time.perf_counter() - t0
+    plan = Plan.from_runs(ts, scenario.name, str(formula), planner, used_seed, res.prefix, res.suffix, stats)
+    plan.verify(ts, nba, formula)
+    return plan

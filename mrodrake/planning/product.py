@@ -1,0 +1,343 @@
+"""Product Büchi automaton PBA = TS ⊗ NBA (paper Section III-B, Def. PBA), on the fly or explicit.
+
+A product state is a pair ``(s, q)`` of a TS state and an NBA state, and
+
+    (s, q) → (s', q')   iff   s →_s s' in the TS   and   q' ∈ δ(q, L(s)),
+
+i.e. the NBA reads the label of the *source* TS state (run ``q0 -L(s0)-> q1 -L(s1)-> ...``); the cost
+of a product transition is χ(s, s') and the accepting product states are ``Π_s × F``.
+
+The module also holds the NBA preprocessing shared by the planners:
+
+* :func:`prune_nba` drops the guard cubes that no single TS label can satisfy (an entity in two regions
+  at once, an entity in no region, entities that cannot all fit in one region, an entity fixed by the
+  caller somewhere else), which is step (1) of STyLuS* (Kantaros & Zavlanos 2020);
+* :func:`accepting_on_cycle` and :func:`hop_distances` give the accepting states that lie on a cycle
+  of the pruned automaton and each state's hop distance to them (edges of weight 1).
+"""
+
+from __future__ import annotations
+
+from collections import deque
+from dataclasses import dataclass
+from typing import Iterator, Mapping, Sequence
+
+import numpy as np
+import scipy.sparse as sp
+
+from mrodrake.logic.buchi import NBA
+from mrodrake.ts import ExplicitTS, State, TransitionSystem
+
+Node = tuple  # (TS state, NBA state)
+
+
+# ------------------------------------------------------------------------------------------ guard cubes
+@dataclass(frozen=True)
+class CubeGoal:
+    """What a guard cube ``(pos, neg)`` over the TS propositions asks of a label.
+
+    ``required[e]``: region where entity ``e`` (robots ``0..N-1``, then objects) must be;
+    ``forbidden[e]``: bitmask of regions where ``e`` must not be.
+    """
+
+    pos: int
+    neg: int
+    required: Mapping[int, int]
+    forbidden: Mapping[int, int]
+
+
+def decode_cube(ts: TransitionSystem, pos: int, neg: int) -> tuple[dict[int, list[int]], dict[int, int]]:
+    """Positive regions per entity (a list: more than one is a contradiction) and forbidden-region masks."""
+    K = ts.K
+    full = (1 << K) - 1
+    required: dict[int, list[int]] = {}
+    forbidden: dict[int, int] = {}
+    m, b = pos, 0
+    while m:
+        if m & 1:
+            required.setdefault(b // K, []).append(b % K)
+        m >>= 1
+        b += 1
+    for e in range((neg.bit_length() + K - 1) // K):
+        f = (neg >> (e * K)) & full
+        if f:
+            forbidden[e] = f
+    return required, forbidden
+
+
+def cube_goal(ts: TransitionSystem, pos: int, neg: int) -> CubeGoal:
+    """The :class:`CubeGoal` of a feasible cube (see :func:`cube_infeasibility`)."""
+    req, forb = decode_cube(ts, pos, neg)
+    return CubeGoal(pos, neg, {e: ks[0] for e, ks in req.items()}, forb)
+
+
+def entity_radius(ts: TransitionSystem, e: int) -> float:
+    return ts.robot_radius[e] if e < ts.N else ts.object_radius[e - ts.N]
+
+
+def cube_infeasibility(ts: TransitionSystem, pos: int, neg: int,
+                       fixed: Mapping[int, int] | None = None) -> str | None:
+    """Why no TS label satisfies the cube ``(pos, neg)`` (``None`` if some label might).
+
+    A label puts every entity in exactly one region, so a cube is infeasible if it puts an entity in two
+    regions, forbids all regions of an entity, contradicts itself, or asks for entities that cannot fit
+    together in one region (necessary area condition: a valid region holds disjoint disks of radius
+    r_D + spacing/2 inside radius R − spacing/2, and a team's covering disk holds its members, so
+    Σ r_e² ≤ (R − spacing/2)²).  ``fixed`` maps entities to the only region they can ever be in.
+    """
+    if pos & neg:
+        return "a proposition is required both true and false"
+    K = ts.K
+    full = (1 << K) - 1
+    req, forb = decode_cube(ts, pos, neg)
+    names = ts.robot_names + ts.object_names
+    n_ent = ts.N + ts.M
+    for e, ks in req.items():
+        if e >= n_ent:
+            return "a proposition outside the TS"
+        if len(ks) > 1:
+            return f"{names[e]} would be in two regions at once"
+    for e, f in forb.items():
+        if e < n_ent and f == full:
+            return f"{names[e]} would be in no region"
+    if fixed:
+        for e, k in fixed.items():
+            if e in req and req[e][0] != k:
+                return f"{names[e]} cannot leave region {ts.region_names[k]}"
+            if forb.get(e, 0) >> k & 1:
+                return f"{names[e]} cannot leave region {ts.region_names[k]}"
+    per_region: dict[int, float] = {}
+    for e, ks in req.items():
+        per_region[ks[0]] = per_region.get(ks[0], 0.0) + entity_radius(ts, e) ** 2
+    for k, area in per_region.items():
+        if area > (ts.region_radius[k] - 0.5 * ts.spacing) ** 2 + 1e-12:
+            return f"the entities required in region {ts.region_names[k]} cannot fit in it"
+    return None
+
+
+def prune_nba(nba: NBA, ts: TransitionSystem, fixed: Mapping[int, int] | None = None) -> NBA:
+    """The NBA without guard cubes that no TS label can satisfy (STyLuS* step 1).
+
+    The result accepts exactly the same TS traces (every dropped cube is false on every TS label), and
+    it keeps the state numbering.  ``fixed`` (entity -> region) additionally assumes entities that can
+    never move (e.g. objects no team is powerful enough to transport).
+    """
+    if tuple(nba.ap) != tuple(ts.propositions):
+        raise ValueError("the NBA must be over the TS propositions (use nba.with_ap(ts.propositions))")
+    edges = []
+    for row in nba.edges:
+        new_row = []
+        for guard, dst in row:
+            cubes = [(p, n) for p, n in guard if cube_infeasibility(ts, p, n, fixed) is None]
+            if cubes:
+                new_row.append((cubes, dst))
+        edges.append(new_row)
+    return NBA(nba.ap, nba.initial, nba.accepting, edges)
+
+
+def nba_graph(nba: NBA) -> list[list[int]]:
+    """Successor lists of the NBA's state graph (edges with a non-empty guard)."""
+    return [[dst for _, dst in row] for row in nba.edges]
+
+
+def _reverse(succ: Sequence[Sequence[int]]) -> list[list[int]]:
+    pred: list[list[int]] = [[] for _ in succ]
+    for q, row in enumerate(succ):
+        for d in row:
+            pred[d].append(q)
+    return pred
+
+
+def _bfs(adj: Sequence[Sequence[int]], sources: Sequence[int]) -> list[float]:
+    dist = [float("inf")] * len(adj)
+    todo = deque()
+    for s in sources:
+        if dist[s] != 0:
+            dist[s] = 0
+            todo.append(s)
+    while todo:
+        u = todo.popleft()
+        for v in adj[u]:
+            if dist[v] == float("inf"):
+                dist[v] = dist[u] + 1
+                todo.append(v)
+    return dist
+
+
+def accepting_on_cycle(nba: NBA) -> frozenset[int]:
+    """Accepting states that reach themselves by a non-empty path (the only useful ones in a lasso)."""
+    succ = nba_graph(nba)
+    out = set()
+    for f in nba.accepting:
+        reach = _bfs(succ, succ[f])
+        if reach[f] < float("inf"):
+            out.add(f)
+    return frozenset(out)
+
+
+def hop_distances(nba: NBA, targets: Sequence[int]) -> list[float]:
+    """Minimum number of NBA edges from each state to ``targets`` (0 on targets, inf if unreachable)."""
+    return _bfs(_reverse(nba_graph(nba)), list(targets))
+
+
+def hop_distances_from(nba: NBA, source: int) -> list[float]:
+    """Minimum number of NBA edges from ``source`` to each state (0 at ``source``)."""
+    return _bfs(nba_graph(nba), [source])
+
+
+def cycle_distances(nba: NBA, root: int) -> list[float]:
+    """Minimum number of NBA edges (at least one) from each state back to ``root`` (suffix trees)."""
+    succ = nba_graph(nba)
+    pred = _reverse(succ)
+    to_pred = _bfs(pred, pred[root]) if pred[root] else [float("inf")] * len(succ)
+    return [d + 1 for d in to_pred]
+
+
+def useful_states(nba: NBA) -> frozenset[int]:
+    """NBA states reachable from the initial state that can reach an accepting state on a cycle."""
+    succ = nba_graph(nba)
+    fwd = _bfs(succ, [nba.initial])
+    back = hop_distances(nba, sorted(accepting_on_cycle(nba)))
+    return frozenset(q for q in range(nba.num_states) if fwd[q] < float("inf") and back[q] < float("inf"))
+
+
+# ------------------------------------------------------------------------------------------- on the fly
+class Product:
+    """TS ⊗ NBA with implicit successors (paper Def. PBA); the NBA must be over ``ts.propositions``."""
+
+    def __init__(self, ts: TransitionSystem, nba: NBA):
+        if tuple(nba.ap) != tuple(ts.propositions):
+            raise ValueError("the NBA must be over the TS propositions (use nba.with_ap(ts.propositions))")
+        self.ts, self.nba = ts, nba
+
+    @property
+    def initial(self) -> Node:
+        return (self.ts.initial, self.nba.initial)
+
+    def is_accepting(self, node: Node) -> bool:
+        return node[1] in self.nba.accepting
+
+    def nba_successors(self, s: State, q: int) -> list[int]:
+        """δ(q, L(s)): NBA states after leaving TS state s."""
+        return self.nba.successors(q, self.ts.label_mask(s))
+
+    def successors(self, node: Node) -> Iterator[tuple[Node, float]]:
+        """All product successors with their cost χ (enumerates the TS successors: small systems only)."""
+        s, q = node
+        qs = self.nba_successors(s, q)
+        if not qs:
+            return
+        for t in self.ts.successor_states(s):
+            c = self.ts.cost(s, t)
+            for q2 in qs:
+                yield (t, q2), c
+
+    def is_transition(self, a: Node, b: Node) -> bool:
+        """(s, q) → (s', q') by the TS rules (re-derived) and the NBA."""
+        return self.ts.check_transition(a[0], b[0]) is None and b[1] in self.nba_successors(a[0], a[1])
+
+    def cost(self, a: Node, b: Node) -> float:
+        return self.ts.cost(a[0], b[0])
+
+    def build(self, ets: ExplicitTS | None = None) -> "ExplicitProduct":
+        """The part of the product reachable from the initial state, as a CSR graph."""
+        return ExplicitProduct.build(self, ets)
+
+
+# ------------------------------------------------------------------------------------------- explicit
+@dataclass
+class ExplicitProduct:
+    """The product over all TS states of ``ets`` as a CSR graph: node ``v = u·Q + q`` is (TS state row
+    ``u`` of ``ets``, NBA state ``q``); ``initial`` is the initial product node (``ets`` row 0 is the TS's
+    initial state).  Nodes unreachable from ``initial`` are kept (they have no effect on searches from it)."""
+
+    product: Product
+    ets: ExplicitTS
+    graph: sp.csr_matrix
+
+    @property
+    def Q(self) -> int:
+        return self.product.nba.num_states
+
+    @property
+    def initial(self) -> int:
+        return self.product.nba.initial
+
+    @property
+    def num_nodes(self) -> int:
+        return self.graph.shape[0]
+
+    @property
+    def num_edges(self) -> int:
+        return self.graph.nnz
+
+    def node(self, v: int) -> Node:
+        u, q = divmod(int(v), self.Q)
+        return (self.ets.state(u), q)
+
+    def accepting_mask(self) -> np.ndarray:
+        acc = np.zeros(self.Q, dtype=bool)
+        acc[list(self.product.nba.accepting)] = True
+        return np.tile(acc, self.ets.num_states)
+
+    def reachable(self) -> np.ndarray:
+        """Boolean mask of the nodes reachable from the initial node."""
+        from scipy.sparse.csgraph import breadth_first_order
+
+        order = breadth_first_order(self.graph, self.initial, directed=True, return_predecessors=False)
+        mask = np.zeros(self.num_nodes, dtype=bool)
+        mask[order] = True
+        return mask
+
+    @staticmethod
+    def build(product: Product, ets: ExplicitTS | None = None) -> "ExplicitProduct":
+        """Vectorised construction straight into CSR order.  NBA moves depend only on the source's
+        label and q, so row ``(u, q)`` holds, for every TS edge ``u → v`` and every
+        ``q' ∈ δ(q, L(u))``, the entry ``(v, q')`` with cost χ(u, v)."""
+        ts, nba = product.ts, product.nba
+        if ets is None:
+            ets = ts.build()
+        S, Q = ets.num_states, nba.num_states
+        pos = ets.states[:, : ts.N + ts.M]
+        uniq, label_of = np.unique(pos, axis=0, return_inverse=True)
+        label_of = label_of.ravel()
+        L, K = len(uniq), ts.K
+        succ = []
+        for lid in range(L):
+            mask = 0
+            for e, k in enumerate(uniq[lid]):
+                mask |= 1 << (e * K + int(k))
+            succ.append([nba.successors(q, mask) for q in range(Q)])
+        kmax = max((len(r) for rows in succ for r in rows), default=0)
+        ns = np.zeros((L, Q), dtype=np.int64)
+        table = np.zeros((L, Q, max(kmax, 1)), dtype=np.int64)
+        for lid, rows in enumerate(succ):
+            for q, r in enumerate(rows):
+                ns[lid, q] = len(r)
+                table[lid, q, : len(r)] = r
+        i32 = np.int32
+        deg = np.diff(ets.indptr).astype(i32)
+        # rows in order (u, q); row (u, q) has deg[u] * ns[label(u), q] entries (edge-major, then q')
+        nsq = ns[label_of].astype(i32).ravel()              # (S*Q,) successors per row
+        count = np.repeat(deg, Q) * nsq
+        indptr = np.zeros(S * Q + 1, dtype=np.int64)
+        np.cumsum(count, out=indptr[1:])
+        total = int(indptr[-1])
+        if total >= 2**31 - 1:
+            raise MemoryError(f"explicit product too large ({total} transitions)")
+        row = np.repeat(np.arange(S * Q, dtype=i32), count)
+        within = np.arange(total, dtype=i32)
+        within -= indptr[:-1].astype(i32)[row]
+        k_per = nsq[row]
+        e_local = within // k_per
+        kk = within - e_local * k_per
+        del within
+        u = row // Q
+        lab_q = label_of.astype(i32)[u] * Q + (row - u * Q)
+        del row
+        edge = ets.indptr[:-1].astype(i32)[u] + e_local
+        del u, e_local
+        col = ets.targets[edge].astype(i32) * Q + table.reshape(-1).astype(i32)[lab_q * table.shape[2] + kk]
+        data = ets.costs[edge]
+        graph = sp.csr_matrix((data, col, indptr), shape=(S * Q, S * Q), copy=False)
+        return ExplicitProduct(product, ets, graph)

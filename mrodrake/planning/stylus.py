@@ -1,0 +1,635 @@
+"""STyLuS* (Kantaros & Zavlanos, IJRR 2020): sampling-based prefix-suffix planning on TS ⊗ NBA.
+
+The product is never built.  The algorithm, as implemented here:
+
+1. **NBA pruning and distances.**  Guard cubes that no single TS label satisfies are removed
+   (:func:`~mrodrake.planning.product.prune_nba`), kept edges weigh 1, and the prefix tree measures NBA
+   states by their hop distance to an accepting state that lies on a cycle.  Refinement: an accepting
+   node whose TS state also satisfies a guard of an edge into the accepting state *from its own cycle*
+   can close a suffix with the free all-idle step, so the prefix distance counts the edges up to such
+   a "closable" entry (a feasible conjunction of the entry cube with a cycle-entry cube), falling back
+   to the plain distance for states that cannot reach one.
+2. **Prefix tree** rooted at ``(s0, q0)``.  Each iteration selects a node: with probability ``p_rand``
+   uniformly among the expandable nodes of minimum ``h(s, q) = min_{q' ∈ δ(q, L(s))} D(q')``, else
+   uniformly among all expandable nodes.  Among the next NBA states of minimum distance it takes the
+   edges that decrease the distance most and, of their guard cubes, one with the fewest estimated TS
+   steps from ``s`` (navigate, grasp, transport); the cube says which entities must (not) be where.  A
+   TS successor of ``s`` is sampled toward that cube with probability ``p_new``, else uniformly at
+   random (:mod:`~mrodrake.planning.sampler`).  The new TS state is added with every NBA state it can
+   take, each with the **cheapest feasible parent** among all tree nodes (a vectorised transition test
+   over all tree states), closed under the free idle step, and then tree nodes at neighbouring TS states
+   are **rewired** through the new nodes when cheaper (the public MATLAB code has rewiring switched
+   off; here the cost keeps improving with more iterations).  Re-sampling a known state rewires too.
+   The TS relation and χ are symmetric, so one vectorised test gives both parents and rewiring targets.
+3. **Suffix trees**, one per accepting prefix node ``a = (s_a, q_a)`` being tried, grown the same way
+   with distances back to ``q_a`` (at least one edge); on the last NBA edge the goal also asks for
+   ``s_a``'s regions and grasps, and a node ``(s, q)`` closes the cycle when ``q_a ∈ δ(q, L(s))`` and
+   ``s → s_a`` is a TS transition.
+4. The cheapest prefix + suffix found so far is the plan (anytime).
+
+Scheduling: until an accepting prefix node exists every iteration grows the prefix tree; afterwards one
+iteration in three does, and the others grow up to ``max_active_suffix`` suffix trees round-robin,
+picked by (closable by the idle step first, then lowest prefix cost) among candidates whose prefix cost
+is below the best plan.  A suffix tree is set aside after ``suffix_budget`` (1000) iterations; when
+all are set aside without a plan, every budget doubles (so no candidate is abandoned for good).
+``iterations`` counts all tree iterations; ``time_limit`` stops earlier; without a plan after
+``iterations`` the search continues until the first plan (at most ``time_limit``, or ``extend_seconds``).
+All randomness comes from one seeded numpy Generator: the same seed and iteration budget give the same
+plan (a time limit makes the result depend on the machine's speed).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+from typing import Callable
+
+import numpy as np
+
+from mrodrake.errors import UserError
+from mrodrake.logic.buchi import NBA
+from mrodrake.planning.product import (CubeGoal, accepting_on_cycle, cube_goal, cube_infeasibility,
+                                       cycle_distances, hop_distances, hop_distances_from, prune_nba,
+                                       useful_states)
+from mrodrake.planning.sampler import Goal, SuccessorSampler
+from mrodrake.ts import State, TransitionSystem
+
+INF = math.inf
+
+
+class _Transitions:
+    """Vectorised TS transition tests and costs between one state and many (rows of an int array)."""
+
+    def __init__(self, ts: TransitionSystem):
+        self.ts = ts
+        self.N, self.M = ts.N, ts.M
+        self.power = np.array(ts.power, dtype=float)
+        self.required = np.array(ts.required_power, dtype=float)
+        self.dist = ts.dist
+        self.gc = ts.grasp_cost
+
+    def mask(self, X: np.ndarray, s) -> np.ndarray:
+        """``ok[r]``: is ``X[r] → s`` a TS transition?  Rows of X and s are valid states.
+
+        The relation is symmetric on valid states (navigate back, release what was grasped, transport
+        back with the same team), so this also answers ``s → X[r]``.  Per robot: a grasp change needs
+        the robot to stay, the object involved to stay, and never switches objects; a robot that keeps
+        grasping an object moves iff the object moves.  These imply that a moving object keeps its team,
+        so per object only Λ with s's team remains (required powers are > 0, so the team is non-empty).
+        """
+        N, M = self.N, self.M
+        n = len(X)
+        if M == 0:
+            return np.ones(n, dtype=bool)
+        s = np.asarray(s, dtype=np.int64).ravel()
+        XR, XO, XG = X[:, :N], X[:, N : N + M], X[:, N + M :]
+        sR, sO, sG = s[:N], s[N : N + M], s[N + M :]
+        moves = XR != sR
+        moved = XO != sO
+        changed = XG != sG
+        has = sG >= 0
+        col_moved = moved[:, np.maximum(sG, 0)]  # per robot: did s's object of that robot move?
+        bad = changed & ((has & (XG >= 0)) | moves | (has & col_moved))
+        bad |= ~changed & has & (moves != col_moved)
+        free = np.flatnonzero(~has)
+        if free.size:  # robots free in s but grasping in X[r]: the object X[r] holds must stay
+            ext = np.zeros((n, M + 1), dtype=bool)
+            ext[:, :M] = moved
+            sub = XG[:, free].astype(np.int64)
+            idx = np.where(sub >= 0, sub, M) + (np.arange(n, dtype=np.int64) * (M + 1))[:, None]
+            bad[:, free] |= ext.ravel()[idx]
+        ok = ~bad.any(axis=1)
+        power = np.zeros(M)
+        for i in np.flatnonzero(has):
+            power[sG[i]] += self.power[i]
+        weak = power < self.required
+        if weak.any():
+            ok &= ~moved[:, weak].any(axis=1)
+        return ok
+
+    def cost(self, A: np.ndarray, B: np.ndarray) -> np.ndarray:
+        """χ(A[r], B[r]) for all rows (broadcast like :meth:`mask`)."""
+        N, M = self.N, self.M
+        c = self.dist[A[:, :N], B[:, :N]].sum(axis=1)
+        c = c + self.gc * (A[:, N + M :] != B[:, N + M :]).sum(axis=1)
+        return c
+
+
+class _Labels:
+    """NBA moves per TS label, shared by all trees: label id -> bool matrix ``T[q, q']``."""
+
+    def __init__(self, ts: TransitionSystem, nba: NBA):
+        self.ts, self.nba = ts, nba
+        self.Q = nba.num_states
+        self.ids: dict[int, int] = {}
+        self.masks: list[int] = []
+        self.succ: list[list[tuple[int, ...]]] = []
+        self.T = np.zeros((64, self.Q, self.Q), dtype=bool)
+
+    def lid(self, s: State) -> int:
+        m = self.ts.label_mask(s)
+        k = self.ids.get(m)
+        if k is None:
+            k = len(self.masks)
+            self.ids[m] = k
+            self.masks.append(m)
+            rows = [tuple(self.nba.successors(q, m)) for q in range(self.Q)]
+            self.succ.append(rows)
+            if k >= len(self.T):
+                self.T = np.concatenate([self.T, np.zeros_like(self.T)])
+            for q, r in enumerate(rows):
+                self.T[k, q, list(r)] = True
+        return k
+
+
+class _Tree:
+    """A STyLuS* tree over product nodes (see the module docstring)."""
+
+    def __init__(self, planner: "Stylus", root: State, root_q: int, dist: list[float],
+                 close_to: tuple[State, int] | None = None):
+        self.p = planner
+        ts = planner.ts
+        self.D = dist
+        self.close_to = close_to
+        self.Q = planner.nba.num_states
+        self.width = 2 * ts.N + ts.M
+        cap = 256
+        self.X = np.zeros((cap, self.width), dtype=np.int16)
+        self.lid = np.zeros(cap, dtype=np.int32)
+        self.node_of = np.full((cap, self.Q), -1, dtype=np.int64)
+        self.C = np.zeros(cap)
+        self.states: list[State] = []
+        self.tid_of: dict[State, int] = {}
+        self.n_tid: list[int] = []
+        self.n_q: list[int] = []
+        self.parent: list[int] = []
+        self.w: list[float] = []
+        self.children: list[list[int]] = []
+        self.h: list[float] = []
+        self.buckets: dict[float, list[int]] = {}
+        self.expandable: list[int] = []
+        self.closers: list[int] = []
+        self._opts: dict[int, list] = {}
+        self.iterations = 0
+        tid = self._add_state(root)
+        self._new_node(tid, root_q, -1, 0.0)
+
+    # --------------------------------------------------------------------------------- storage
+    def _add_state(self, s: State) -> int:
+        tid = len(self.states)
+        if tid >= len(self.X):
+            self.X = np.concatenate([self.X, np.zeros_like(self.X)])
+            self.lid = np.concatenate([self.lid, np.zeros_like(self.lid)])
+            self.node_of = np.concatenate([self.node_of, np.full_like(self.node_of, -1)])
+        self.X[tid] = s
+        self.lid[tid] = self.p.labels.lid(s)
+        self.states.append(s)
+        self.tid_of[s] = tid
+        return tid
+
+    def _new_node(self, tid: int, q: int, parent: int, w: float) -> int:
+        v = len(self.n_tid)
+        if v >= len(self.C):
+            self.C = np.concatenate([self.C, np.zeros_like(self.C)])
+        self.n_tid.append(tid)
+        self.n_q.append(q)
+        self.parent.append(parent)
+        self.w.append(w)
+        self.children.append([])
+        self.C[v] = (self.C[parent] + w) if parent >= 0 else 0.0
+        if parent >= 0:
+            self.children[parent].append(v)
+        self.node_of[tid, q] = v
+        succ = self.p.labels.succ[self.lid[tid]][q]
+        h = min((self.D[x] for x in succ), default=INF)
+        self.h.append(h)
+        if h < INF:
+            self.buckets.setdefault(h, []).append(v)
+            self.expandable.append(v)
+        if self.close_to is not None and self._closes(v):
+            self.closers.append(v)
+        self.p._on_new_node(self, v)
+        return v
+
+    def _closes(self, v: int) -> bool:
+        s_a, q_a = self.close_to
+        tid = self.n_tid[v]
+        if not self.p.labels.T[self.lid[tid], self.n_q[v], q_a]:
+            return False
+        return self.p.ts.check_transition(self.states[tid], s_a) is None
+
+    def _reparent(self, v: int, u: int, w: float) -> None:
+        old = self.parent[v]
+        if old >= 0:
+            self.children[old].remove(v)
+        self.parent[v] = u
+        self.w[v] = w
+        self.children[u].append(v)
+        C = self.C
+        C[v] = C[u] + w
+        stack = list(self.children[v])
+        while stack:
+            c = stack.pop()
+            C[c] = C[self.parent[c]] + self.w[c]
+            stack.extend(self.children[c])
+
+    # --------------------------------------------------------------------------------- growth
+    def insert(self, s: State) -> None:
+        """Add TS state s with every NBA state it can take (cheapest parents), then rewire."""
+        p = self.p
+        tid = self.tid_of.get(s)
+        n = len(self.states)
+        row = np.asarray(s, dtype=np.int16)[None, :]
+        X = self.X[:n]
+        pred = np.flatnonzero(p.trans.mask(X, s))
+        if tid is None:
+            tid = self._add_state(s)
+        if len(pred) == 0:
+            return
+        chi = p.trans.cost(X[pred], row)
+        pi, pq = np.nonzero(self.node_of[pred] >= 0)  # candidate parent nodes (tree state, NBA state)
+        parents = self.node_of[pred[pi], pq]
+        base = self.C[parents] + chi[pi]
+        T = p.labels.T[self.lid[pred[pi]], pq]  # (candidates, Q): NBA moves of each candidate
+        tot = np.where(T, base[:, None], INF)
+        best = tot.argmin(axis=0)
+        best_cost = tot[best, np.arange(self.Q)]
+        changed = []
+        for q in np.flatnonzero(np.isfinite(best_cost)):
+            k = int(best[q])
+            u = int(parents[k])
+            c = float(chi[pi[k]])
+            v = int(self.node_of[tid, q])
+            if v < 0:
+                changed.append(self._new_node(tid, int(q), u, c))
+            elif self.C[u] + c < self.C[v] - 1e-9 and u != v:
+                self._reparent(v, u, c)
+                changed.append(v)
+        # idle self-loop closure: (s, q) -> (s, q') costs nothing when q' ∈ δ(q, L(s))
+        queue = list(changed)
+        succ_rows = p.labels.succ[self.lid[tid]]
+        while queue:
+            v = queue.pop()
+            for q2 in succ_rows[self.n_q[v]]:
+                y = int(self.node_of[tid, q2])
+                if y < 0:
+                    y = self._new_node(tid, q2, v, 0.0)
+                elif y != v and self.C[v] < self.C[y] - 1e-9:
+                    self._reparent(y, v, 0.0)
+                else:
+                    continue
+                changed.append(y)
+                queue.append(y)
+        for v in dict.fromkeys(changed):  # successors of s are its predecessors (symmetric relation, χ)
+            self._rewire_from(v, pred, chi)
+
+    def _rewire_from(self, v: int, succ: np.ndarray, chi: np.ndarray) -> None:
+        """Reparent the nodes at TS states ``succ`` (with costs ``chi`` from v's state) through v."""
+        p = self.p
+        tid = self.n_tid[v]
+        new_cost = self.C[v] + chi
+        for q2 in p.labels.succ[self.lid[tid]][self.n_q[v]]:
+            ys = self.node_of[succ, q2]
+            better = (ys >= 0) & (new_cost < self.C[np.maximum(ys, 0)] - 1e-9)
+            for k in np.flatnonzero(better):
+                y = int(ys[k])
+                if y != v and self.C[v] + chi[k] < self.C[y] - 1e-9:
+                    self._reparent(y, v, float(chi[k]))
+
+    def select(self, rng: np.random.Generator) -> int:
+        """With probability p_rand a uniform node of the minimum-distance bucket, else any expandable node."""
+        if rng.random() < self.p.p_rand:
+            bucket = self.buckets[min(self.buckets)]
+            return bucket[int(rng.integers(len(bucket)))]
+        return self.expandable[int(rng.integers(len(self.expandable)))]
+
+    def options(self, v: int) -> list[tuple[float, int, int, int]]:
+        """Candidate goal cubes of node v: (estimated TS steps, pos, neg, target NBA state); cached."""
+        opts = self._opts.get(v)
+        if opts is not None:
+            return opts
+        p = self.p
+        tid, q = self.n_tid[v], self.n_q[v]
+        s = self.states[tid]
+        nexts = p.labels.succ[self.lid[tid]][q]
+        D = self.D
+        dmin = min(D[x] for x in nexts)
+        cands = []
+        for q1 in nexts:
+            if D[q1] != dmin:
+                continue
+            for guard, q2 in p.edges[q1]:
+                cands.append((guard, q2))
+        cubes = {}
+        if dmin == 1 and self.close_to is not None:
+            for guard, q2 in cands:
+                if q2 == self.close_to[1]:
+                    for pos, neg in guard:
+                        cubes.setdefault((pos, neg, q2), None)
+        elif dmin == 1 and p.closable:
+            for guard, q2 in cands:
+                if q2 in p.acc:
+                    for pos, neg in guard:
+                        for c in p.closing_cubes(pos, neg, q2):
+                            cubes.setdefault(c + (q2,), None)
+        else:
+            # the NBA step that decreases the distance most (at an accepting state of a prefix tree
+            # without closable entries, dmin == 0: the step that heads back toward acceptance)
+            want = min((D[c[1]] for c in cands), default=INF)
+            for guard, q2 in cands:
+                if D[q2] == want:
+                    for pos, neg in guard:
+                        cubes.setdefault((pos, neg, q2), None)
+        opts = [(p.cube_steps(s, p.cube(pos, neg)), pos, neg, q2) for pos, neg, q2 in cubes]
+        self._opts[v] = opts
+        return opts
+
+    def goal_for(self, v: int, rng: np.random.Generator) -> Goal | None:
+        """The guard cube to aim at from node v (see the module docstring)."""
+        p = self.p
+        opts = self.options(v)
+        if not opts:
+            return None
+        vmin = min(o[0] for o in opts)
+        best = [o for o in opts if o[0] == vmin]
+        _, pos, neg, q2 = best[int(rng.integers(len(best)))]
+        cg = p.cube(pos, neg)
+        target = None
+        if self.close_to is not None and q2 == self.close_to[1]:
+            target = self.close_to[0]
+        if target is None and not cg.required and not cg.forbidden:
+            return None
+        return Goal.from_cube(cg.required, cg.forbidden, target, p.ts)
+
+    def step(self, rng: np.random.Generator) -> None:
+        self.iterations += 1
+        v = self.select(rng)
+        s = self.states[self.n_tid[v]]
+        goal = self.goal_for(v, rng)
+        t = self.p.sampler.sample(s, goal, self.p.p_new)
+        self.insert(t)
+
+    # --------------------------------------------------------------------------------- paths
+    def path(self, v: int) -> list[tuple[State, int]]:
+        out = []
+        while v >= 0:
+            out.append((self.states[self.n_tid[v]], self.n_q[v]))
+            v = self.parent[v]
+        return out[::-1]
+
+    def best_cycle(self) -> tuple[float, int]:
+        """(cost, closing node) of the cheapest cycle back to the root, or (inf, -1)."""
+        if not self.closers:
+            return INF, -1
+        s_a = self.close_to[0]
+        best, arg = INF, -1
+        for v in self.closers:
+            c = self.C[v] + self.p.ts.cost(self.states[self.n_tid[v]], s_a)
+            if c < best:
+                best, arg = c, v
+        return best, arg
+
+    @property
+    def num_nodes(self) -> int:
+        return len(self.n_tid)
+
+
+@dataclass
+class StylusResult:
+    """Best lasso found: product nodes of prefix and suffix, costs, and the run's statistics."""
+
+    prefix: list
+    suffix: list
+    prefix_cost: float
+    suffix_cost: float
+    stats: dict = field(default_factory=dict)
+    history: list = field(default_factory=list)  # (seconds, iteration, total cost) at each improvement
+
+
+class Stylus:
+    """STyLuS* planner for ``ts`` and an NBA over ``ts.propositions``."""
+
+    def __init__(self, ts: TransitionSystem, nba: NBA, seed: int | None = None, p_rand: float | None = None,
+                 p_new: float | None = None, max_active_suffix: int = 4, suffix_budget: int = 1000):
+        self.ts = ts
+        self.nba = prune_nba(nba, ts)
+        self.p_rand = ts.scenario.planning.p_rand if p_rand is None else p_rand
+        self.p_new = ts.scenario.planning.p_new if p_new is None else p_new
+        self.rng = np.random.default_rng(seed)
+        self.sampler = SuccessorSampler(ts, self.rng)
+        self.trans = _Transitions(ts)
+        self.labels = _Labels(ts, self.nba)
+        self.edges = self.nba.edges
+        self.acc = accepting_on_cycle(self.nba)
+        self._closing: dict[tuple[int, int, int], list[tuple[int, int]]] = {}
+        self.return_cubes: dict[int, list[tuple[int, int]]] = {}
+        for f in self.acc:
+            back = hop_distances_from(self.nba, f)
+            self.return_cubes[f] = [c for q, row in enumerate(self.edges) if back[q] < INF
+                                    for g, d in row if d == f for c in g]
+        # prefix distances: edges up to and including a "closable" entry into an accepting state (one
+        # whose cube is consistent with a cycle-entry guard of that state); states that cannot reach
+        # such an entry keep their plain distance to acceptance, offset behind all closable ones
+        lasts = [q for q, row in enumerate(self.edges)
+                 if any(f in self.acc and self.closing_cubes(pos, neg, f) for g, f in row for pos, neg in g)]
+        self.closable = bool(lasts) and self.nba.initial in {
+            q for q, d in enumerate(hop_distances(self.nba, lasts)) if d < INF}
+        d_acc = hop_distances(self.nba, sorted(self.acc))
+        if self.closable:
+            d_close = [d + 1 for d in hop_distances(self.nba, lasts)]
+            off = max(d for d in d_close if d < INF) + 1
+            self.d_prefix = [dc if dc < INF else off + da for dc, da in zip(d_close, d_acc)]
+        else:
+            self.d_prefix = d_acc
+        self.max_active = max_active_suffix
+        self.suffix_budget = suffix_budget
+        self._cubes: dict[tuple[int, int], CubeGoal] = {}
+        self._dlist = ts.dist.tolist()
+        self._dscale = float(ts.dist.max()) * (ts.N + ts.M) + 1.0
+        self._new_accepting: list[int] = []
+        self._reach: dict[int, list[int]] = {}
+        self.prefix_tree: _Tree | None = None
+
+    def closing_cubes(self, pos: int, neg: int, f: int) -> list[tuple[int, int]]:
+        """Feasible conjunctions of the cube (pos, neg) of an edge into accepting state f with the guard
+        cubes of the edges into f from f's own cycle: a TS state satisfying one enters f and can close a
+        suffix with the free idle step (cached)."""
+        key = (pos, neg, f)
+        out = self._closing.get(key)
+        if out is None:
+            out = []
+            for rp, rn in self.return_cubes.get(f, ()):
+                c = (pos | rp, neg | rn)
+                if c not in out and cube_infeasibility(self.ts, c[0], c[1]) is None:
+                    out.append(c)
+            self._closing[key] = out
+        return out
+
+    def cube_steps(self, s: State, cg: CubeGoal) -> float:
+        """Rough number of TS steps until s satisfies the cube (navigate, grasp, transport; the travel
+        distance still needed breaks ties), used to choose among the guard cubes to aim at."""
+        ts = self.ts
+        N = ts.N
+        d = self._dlist
+        steps, dist = 0, 0.0
+        for e, k in cg.required.items():
+            if e < N:
+                if s[e] != k:
+                    steps += 1 + (s[ts.N + ts.M + e] >= 0)
+                    dist += d[s[e]][k]
+            else:
+                j = e - N
+                r = s[e]
+                if r != k:
+                    steps += 1
+                    dist += d[r][k]
+                    team = sum(ts.power[i] for i in range(N) if s[N + ts.M + i] == j)
+                    if team < ts.required_power[j]:
+                        near = sum(ts.power[i] for i in range(N) if s[i] == r and s[N + ts.M + i] < 0)
+                        steps += 1 if team + near >= ts.required_power[j] else 2
+        for e, mask in cg.forbidden.items():
+            if mask >> s[e] & 1 and e not in cg.required:
+                steps += 1 if e < N else 3
+        return steps + dist / self._dscale
+
+    def cube(self, pos: int, neg: int) -> CubeGoal:
+        key = (pos, neg)
+        cg = self._cubes.get(key)
+        if cg is None:
+            cg = cube_goal(self.ts, pos, neg)
+            self._cubes[key] = cg
+        return cg
+
+    def _on_new_node(self, tree: _Tree, v: int) -> None:
+        if tree is self.prefix_tree and tree.n_q[v] in self.acc:
+            self._new_accepting.append(v)
+
+    def _idle_closable(self, tree: _Tree, a: int) -> bool:
+        """Can a cycle through accepting node a = (s_a, q_a) end with the free idle step s_a → s_a, i.e.
+        does L(s_a) enable an NBA edge q → q_a from a state q reachable from q_a?  Such roots are tried
+        first: the others need a different TS state one step before s_a that satisfies the guard."""
+        q_a = tree.n_q[a]
+        reach = self._reach.get(q_a)
+        if reach is None:
+            d = hop_distances_from(self.nba, q_a)
+            reach = [q for q in range(self.nba.num_states) if d[q] < INF]
+            self._reach[q_a] = reach
+        T = self.labels.T[tree.lid[tree.n_tid[a]]]
+        return bool(T[reach, q_a].any())
+
+    def run(self, iterations: int, time_limit: float | None = None, stop_at_first: bool = False,
+            progress: Callable[[dict], None] | None = None, extend_seconds: float = 60.0) -> StylusResult:
+        """Grow the trees for ``iterations`` iterations or ``time_limit`` seconds, whichever ends first.
+
+        If no plan exists after ``iterations``, keep going until the first plan, for at most
+        ``time_limit`` (or ``extend_seconds`` without a time limit); then UserError.  ``progress`` gets a
+        dict (iteration, seconds, tree sizes, best cost) about ten times a second.
+        """
+        t0 = time.perf_counter()
+        ts, rng = self.ts, self.rng
+        useful = useful_states(self.nba)
+        if self.nba.initial not in useful:
+            raise UserError(f"task is unsatisfiable: the NBA ({self.nba.num_states} states) has no accepting "
+                            "cycle whose guards a TS label can satisfy (searched the pruned NBA)")
+        self.prefix_tree = None
+        self._new_accepting = []
+        pre = _Tree(self, ts.initial, self.nba.initial, self.d_prefix)
+        self.prefix_tree = pre
+        if not pre.expandable:
+            raise UserError("task is unsatisfiable: from the initial state's label the NBA can only move to "
+                            "states without a reachable accepting cycle (searched the pruned NBA)")
+        if pre.n_q[0] in self.acc:
+            self._new_accepting.append(0)
+        candidates: list[int] = []  # accepting prefix nodes
+        suffix: dict[int, _Tree] = {}
+        budget: dict[int, int] = {}  # suffix iterations allowed per candidate before it is set aside
+        base_budget = self.suffix_budget
+        active: list[int] = []
+        best = (INF, -1, -1)  # total, accepting prefix node, closing suffix node
+        history = []
+        first_seconds = None
+        it = rr = 0
+        last_report = -1.0
+
+        def current_best():
+            b = (INF, -1, -1)
+            for a, tree in suffix.items():
+                c, v = tree.best_cycle()
+                if v >= 0 and pre.C[a] + c < b[0]:
+                    b = (pre.C[a] + c, a, v)
+            return b
+
+        def spent(a: int) -> int:
+            return suffix[a].iterations if a in suffix else 0
+
+        def exhausted(a: int) -> bool:
+            return spent(a) >= budget.setdefault(a, base_budget) or (a in suffix and suffix[a].best_cycle()[0] == 0.0)
+
+        while True:
+            now = time.perf_counter() - t0
+            if time_limit is not None and now > time_limit:
+                break
+            if it >= iterations and (best[1] >= 0 or time_limit is None and now > extend_seconds):
+                break
+            it += 1
+            if self._new_accepting:
+                candidates.extend(self._new_accepting)
+                self._new_accepting.clear()
+            grow_suffix = bool(candidates) and it % 3 != 0
+            if grow_suffix:
+                # a few active suffix trees, lowest prefix cost first (idle-closable roots before others)
+                active = [a for a in active if not exhausted(a) and pre.C[a] < best[0]]
+                if len(active) < self.max_active:
+                    pool = [a for a in candidates if a not in active and pre.C[a] < best[0] and not exhausted(a)]
+                    if not pool and not active and best[1] < 0:
+                        for a in candidates:  # everything tried: double the budgets (completeness)
+                            budget[a] = 2 * budget.setdefault(a, base_budget)
+                        pool = [a for a in candidates if not exhausted(a)]
+                    pool.sort(key=lambda a: (not self._idle_closable(pre, a), pre.C[a], a))
+                    active.extend(pool[: self.max_active - len(active)])
+                grow_suffix = bool(active)
+            if grow_suffix:
+                a = active[rr % len(active)]
+                rr += 1
+                tree = suffix.get(a)
+                if tree is None:
+                    s_a, q_a = pre.states[pre.n_tid[a]], pre.n_q[a]
+                    tree = _Tree(self, s_a, q_a, cycle_distances(self.nba, q_a), close_to=(s_a, q_a))
+                    suffix[a] = tree
+                if tree.expandable and not (tree.closers and tree.best_cycle()[0] == 0.0):
+                    tree.step(rng)
+                else:
+                    budget[a] = 0
+            else:
+                pre.step(rng)
+            b = current_best() if suffix else best
+            if b[0] < best[0] - 1e-9:
+                best = b
+                elapsed = time.perf_counter() - t0
+                if first_seconds is None:
+                    first_seconds = elapsed
+                history.append((elapsed, it, best[0]))
+                if stop_at_first:
+                    break
+            if progress is not None and (now - last_report > 0.1 or it == iterations):
+                last_report = now
+                progress({"iteration": it, "iterations": iterations, "seconds": now,
+                          "prefix_nodes": pre.num_nodes, "suffix_trees": len(suffix), "best": best[0]})
+        elapsed = time.perf_counter() - t0
+        stats = {"iterations": it, "seconds": elapsed, "first_plan_seconds": first_seconds,
+                 "prefix_nodes": pre.num_nodes, "prefix_ts_states": len(pre.states),
+                 "accepting_prefix_nodes": len(candidates), "suffix_trees": len(suffix),
+                 "suffix_nodes": sum(t.num_nodes for t in suffix.values()),
+                 "sampler": dict(self.sampler.stats)}
+        if best[1] < 0:
+            raise UserError(f"no plan found within {it} iterations and {elapsed:.1f} s (STyLuS* is "
+                            "probabilistically complete: raise --iterations or --time-limit, or use --planner "
+                            "exact to decide satisfiability)")
+        _, a, v = best
+        prefix_nodes = pre.path(a)[:-1]
+        tree = suffix[a]
+        suffix_nodes = tree.path(v)
+        pc = float(pre.C[a])
+        sc = float(tree.best_cycle()[0])
+        return StylusResult(prefix_nodes, suffix_nodes, pc, sc, stats, history)

@@ -1,0 +1,112 @@
+"""STyLuS*: verified plans for both case studies, agreement with the exact planner on satisfiability
+and cost (exact ≤ STyLuS*), determinism per seed, tree invariants after rewiring, large scenarios."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from mrodrake.errors import UserError
+from mrodrake.planning.generate import generate_scenario
+from mrodrake.planning.plan import plan_scenario, task_nba
+from mrodrake.planning.product import Product
+from mrodrake.planning.stylus import Stylus
+from mrodrake.ts import TransitionSystem
+
+
+@pytest.fixture(scope="module")
+def case1_exact(case1):
+    return plan_scenario(case1.scenario, planner="exact")
+
+
+@pytest.mark.parametrize("which", ["case1", "case2"])
+def test_case_study_plans_verified(which, request):
+    case = request.getfixturevalue(which)
+    plan = plan_scenario(case.scenario, planner="stylus", seed=3)
+    plan.verify(case.ts, case.nba, case.formula)
+    assert plan.stats["first_plan_seconds"] is not None
+
+
+def test_exact_cost_is_a_lower_bound_case1(case1, case1_exact):
+    for seed in (0, 1):
+        plan = plan_scenario(case1.scenario, planner="stylus", seed=seed, iterations=1500)
+        assert case1_exact.total_cost <= plan.total_cost + 1e-9
+
+
+def test_same_seed_same_plan(case1):
+    a = plan_scenario(case1.scenario, seed=7, iterations=1200)
+    b = plan_scenario(case1.scenario, seed=7, iterations=1200)
+    assert a.prefix == b.prefix and a.suffix == b.suffix
+    assert a.step_costs == b.step_costs
+
+
+def test_tree_invariants_after_rewiring(case1):
+    """Every tree node's cost is its parent's plus χ, and every tree edge is a product transition."""
+    planner = Stylus(case1.ts, case1.nba, seed=2)
+    planner.run(1500)
+    tree = planner.prefix_tree
+    product = Product(case1.ts, planner.nba)
+    assert tree.num_nodes > 100
+    for v in range(1, tree.num_nodes):
+        u = tree.parent[v]
+        a = (tree.states[tree.n_tid[u]], tree.n_q[u])
+        b = (tree.states[tree.n_tid[v]], tree.n_q[v])
+        assert product.is_transition(a, b)
+        assert tree.w[v] == pytest.approx(case1.ts.cost(a[0], b[0]), abs=1e-9)
+        assert tree.C[v] == pytest.approx(tree.C[u] + tree.w[v], abs=1e-6)
+        assert v in tree.children[u]
+
+
+def test_progress_callback_and_history(case1):
+    seen = []
+    planner = Stylus(case1.ts, case1.nba, seed=0)
+    res = planner.run(1500, progress=seen.append)
+    its = [x["iteration"] for x in seen]
+    assert its == sorted(its) and its[-1] == res.stats["iterations"]
+    costs = [c for _, _, c in res.history]
+    assert costs == sorted(costs, reverse=True) and costs[-1] == pytest.approx(res.prefix_cost + res.suffix_cost)
+
+
+def test_time_limit_stops_early(case1):
+    with pytest.raises(UserError) as e:
+        Stylus(case1.ts, case1.nba, seed=0).run(10**9, time_limit=0.05)
+    assert str(e.value).startswith("no plan found within") and "\n" not in str(e.value)
+
+
+@settings(max_examples=12, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(n=st.integers(1, 2), m=st.integers(0, 2), k=st.integers(2, 3), seed=st.integers(0, 10**6),
+       full=st.booleans())
+def test_agrees_with_exact_on_small_random_scenarios(n, m, k, seed, full):
+    sc = generate_scenario(n, m, k, seed, full=full)
+    try:
+        exact = plan_scenario(sc, planner="exact")
+    except UserError as e:
+        assert str(e).startswith("task is unsatisfiable")
+        with pytest.raises(UserError):
+            plan_scenario(sc, planner="stylus", iterations=300, time_limit=1.0)
+        return
+    plan = plan_scenario(sc, planner="stylus", iterations=400, time_limit=20.0)
+    assert exact.total_cost <= plan.total_cost + 1e-9
+
+
+def test_large_generated_scenario_first_plan():
+    """N=10 robots, M=5 objects, K=8 regions: the explicit TS is far beyond reach, STyLuS* is not."""
+    sc = generate_scenario(10, 5, 8, 0, full=True)
+    ts = TransitionSystem(sc)
+    f, nba = task_nba(sc, ts)
+    res = Stylus(ts, nba, seed=0).run(200, time_limit=60.0, stop_at_first=True)
+    assert res.stats["first_plan_seconds"] < 60.0
+    assert math.isfinite(res.prefix_cost + res.suffix_cost)
+    plan = plan_scenario(sc, seed=0, iterations=res.stats["iterations"])
+    plan.verify(ts, nba, f)
+
+
+@pytest.mark.slow
+def test_exact_cost_is_a_lower_bound_case2(case2):
+    exact = plan_scenario(case2.scenario, planner="exact")
+    for seed in (0, 1, 2):
+        plan = plan_scenario(case2.scenario, planner="stylus", seed=seed)
+        assert exact.total_cost <= plan.total_cost + 1e-9
