@@ -1,4 +1,4 @@
-"""``mrodrake bench ts|ltl``: benchmarks that print a table (never part of the default test run)."""
+"""``mrodrake bench ts|ltl|plan|control|replay|run``: benchmarks that print a table (never run by the tests)."""
 
 from __future__ import annotations
 
@@ -50,4 +50,20 @@ def run(what: str, args=None) -> int:
         from mrodrake.logic.bench import run_ltl_benchmark
 
         run_ltl_benchmark()
+    elif what == "plan":
+        from mrodrake.planning.bench import run_plan_benchmark
+
+        run_plan_benchmark(sys.stdout)
+    elif what == "control":
+        from mrodrake.control.bench import run_control_benchmark
+
+        run_control_benchmark(sys.stdout)
+    elif what == "replay":
+        from mrodrake.viz.replay import bench_replay
+
+        bench_replay()
+    elif what == "run":
+        from mrodrake.systems.bench_run import run_mission_benchmark
+
+        run_mission_benchmark(sys.stdout)
     return 0

@@ -1,4 +1,4 @@
-"""The ``mrodrake`` command line: validate, ts, ltl2nba, bench (more subcommands arrive with later stages).
+"""The ``mrodrake`` command line: validate, ts, ltl2nba, plan, run, bench.
 
 User errors print ``error: <one line>`` (plus a caret line for formula errors) and exit with status 2;
 Ctrl-C exits with status 130 without a traceback.
@@ -109,15 +109,18 @@ def build_parser() -> argparse.ArgumentParser:
                    "(with costs and actions) as JSON")
     p.set_defaults(func=_cmd_ts)
 
-    try:
-        from mrodrake.logic import cli as logic_cli
-    except ImportError:
-        logic_cli = None
-    if logic_cli is not None:
-        logic_cli.add_subparser(sub)
+    from mrodrake.logic import cli as logic_cli
+    from mrodrake.planning import cli as plan_cli
+    from mrodrake.systems import run_cli
 
-    p = sub.add_parser("bench", help="benchmarks (not tests)", description="Run a benchmark and print a table.")
-    p.add_argument("what", choices=["ts", "ltl"], help="what to benchmark")
+    logic_cli.add_subparser(sub)
+    plan_cli.add_subparser(sub)
+    run_cli.add_subparser(sub)
+
+    p = sub.add_parser("bench", help="benchmarks (not tests)", description="Run a benchmark and print a table: "
+                       "ts (TS construction), ltl (LTL->NBA vs Spot), plan (planners), control (map and one "
+                       "navigation), replay (HTML replay), run (whole case-I mission).")
+    p.add_argument("what", choices=["ts", "ltl", "plan", "control", "replay", "run"], help="what to benchmark")
     p.set_defaults(func=_cmd_bench)
     return parser
 

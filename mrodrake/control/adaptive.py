@@ -1,0 +1,167 @@
+"""Adaptive navigation and cooperative-transport control laws (paper Section III-A), pure numpy.
+
+Navigation of one entity with unknown mass m and friction bound α (Assumption 1):
+
+    v_d = −J_H(x)⁻¹ ∇φ(H(x))                                              (eq. v_d)
+    e_v = ẋ − v_d
+    u   = −k_φ J_H(x)ᵀ ∇φ(H(x)) + m̂ v̇_d − (k_v + 3/2 α̂) e_v                  (control law u)
+    dm̂/dt = −k_m e_vᵀ v̇_d,   dα̂/dt = k_α ‖e_v‖²                            (eq. adaptation law)
+
+Cooperative transport: the same law for the coupled robots-object entity (eq. coupled dynamics, estimates
+m̂_A,j, α̂_A,j), split to the team by load-sharing coefficients: u_ℓ = cf_ℓ u, cf_ℓ ≥ 0, Σ cf_ℓ = 1, so
+that Σ_ℓ u_ℓ = u.  The paper prints the transport law as u_ℓ = −cf_ℓ{k_φ Jᵀ∇φ + m̂ v̇_d − (k_v + 3/2 α̂) e_v};
+taken literally that flips the sign of the m̂ v̇_d and damping terms (a destabilising positive velocity
+feedback), which contradicts the paper's own argument ("by invoking Σ cf_ℓ = 1 ... similar to the robot
+navigation case"); we implement u_ℓ = cf_ℓ × (navigation law), the reading that argument needs.
+
+Velocity saturation (our addition, documented deviation).  H squeezes whole rooms of an office into thin
+slivers near the unit circle, where J_H⁻¹ is large: the raw v_d reaches ~100 m/s in the case-study rooms,
+and at such speeds the entity enters the (tiny, τ ~ 1e-7) barrier regions so fast that u reaches 1e9 and
+the integrator stalls.  We therefore use
+
+    v_d = σ(ṽ_d),  ṽ_d = −J_H⁻¹ ∇φ,  σ(v) = v / sqrt(1 + ‖v‖²/v_max²)
+
+(smooth, σ(v) ≈ v for ‖v‖ ≪ v_max, ‖σ(v)‖ < v_max) with its exact derivative v̇_d = Dσ(ṽ_d) dṽ_d/dt,
+Dσ(v) = q^{-1/2} (I − v vᵀ / (v_max² q)), q = 1 + ‖v‖²/v_max².  σ rescales ṽ_d by the positive scalar
+c(x) = q^{-1/2} ∈ (0, 1], so χ̇ = J_H v_d = −c ∇φ still descends φ, and in the paper's Lyapunov argument
+the term k_φ ∇φᵀ J_H v_d becomes −k_φ c ‖∇φ‖² ≤ 0 while the cross terms are cancelled by −k_φ J_Hᵀ∇φ as
+before.  ``v_max = inf`` recovers the paper's law exactly.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import NamedTuple, Sequence
+
+import numpy as np
+
+from mrodrake.control.navfunc import TAU_FRACTION, NavigationFunction, desired_velocity, r_bar_d
+
+#: Default speed bound v_max (m/s) of the desired velocity (module docstring).
+V_MAX = 2.0
+
+
+@dataclass(frozen=True)
+class AdaptiveGains:
+    """k_φ, k_v, k_m, k_α of the control and adaptation laws and the initial estimates m̂(0), α̂(0)."""
+
+    k_phi: float = 1.0
+    k_v: float = 1.0
+    k_m: float = 0.01
+    k_alpha: float = 0.01
+    m_hat0: float = 0.5
+    alpha_hat0: float = 0.0
+
+    @classmethod
+    def from_scenario(cls, control) -> "AdaptiveGains":
+        """From the scenario's ``control`` section (:class:`mrodrake.scenario.ControlGains`)."""
+        return cls(control.k_phi, control.k_v, control.k_m, control.k_alpha, control.m_hat0, control.alpha_hat0)
+
+
+def navigation_input(J: np.ndarray, grad_phi: np.ndarray, vdot_d: np.ndarray, e_v: np.ndarray,
+                     m_hat: float, alpha_hat: float, k_phi: float, k_v: float) -> np.ndarray:
+    """u = −k_φ J_Hᵀ ∇φ + m̂ v̇_d − (k_v + 3/2 α̂) e_v (paper Sec. III-A, control law u)."""
+    return -k_phi * (J.T @ grad_phi) + m_hat * vdot_d - (k_v + 1.5 * alpha_hat) * e_v
+
+
+def adaptation_rates(e_v: np.ndarray, vdot_d: np.ndarray, k_m: float, k_alpha: float) -> tuple[float, float]:
+    """(dm̂/dt, dα̂/dt) = (−k_m e_vᵀ v̇_d, k_α ‖e_v‖²) (eq. adaptation law)."""
+    return -k_m * float(e_v @ vdot_d), k_alpha * float(e_v @ e_v)
+
+
+def saturate_velocity(v: np.ndarray, vdot: np.ndarray, v_max: float) -> tuple[np.ndarray, np.ndarray]:
+    """(σ(v), Dσ(v) v̇) with σ(v) = v / sqrt(1 + ‖v‖²/v_max²) (module docstring); identity for v_max = inf."""
+    if not math.isfinite(v_max):
+        return v, vdot
+    w = 1.0 / (v_max * v_max)
+    q = 1.0 + w * float(v @ v)
+    c = 1.0 / math.sqrt(q)
+    return c * v, c * (vdot - v * (w * float(v @ vdot) / q))
+
+
+def load_sharing(cf: Sequence[float] | int) -> np.ndarray:
+    """Validated load-sharing coefficients cf_ℓ ≥ 0 with Σ cf_ℓ = 1 (an int n gives equal shares 1/n)."""
+    if isinstance(cf, (int, np.integer)):
+        if cf < 1:
+            raise ValueError("a team needs at least one member")
+        return np.full(int(cf), 1.0 / int(cf))
+    arr = np.asarray(cf, dtype=float).reshape(-1)
+    if len(arr) == 0 or not np.all(np.isfinite(arr)) or np.any(arr < 0.0):
+        raise ValueError(f"load-sharing coefficients must be finite and >= 0, got {arr.tolist()}")
+    if not math.isclose(float(arr.sum()), 1.0, rel_tol=0.0, abs_tol=1e-9):
+        raise ValueError(f"load-sharing coefficients must sum to 1, got sum {arr.sum():.12g}")
+    return arr
+
+
+def transport_inputs(u: np.ndarray, cf: np.ndarray) -> np.ndarray:
+    """u_ℓ = cf_ℓ u for every team member ℓ (rows), paper Sec. III-A 2); Σ_ℓ u_ℓ = u."""
+    return np.outer(cf, u)
+
+
+class ControlEval(NamedTuple):
+    """Everything one evaluation of the law produces (per state and estimates)."""
+
+    u: np.ndarray  # entity input (2,)
+    m_hat_dot: float
+    alpha_hat_dot: float
+    v_d: np.ndarray
+    vdot_d: np.ndarray
+    e_v: np.ndarray
+
+
+@dataclass(frozen=True)
+class NavigationTask:
+    """One transition's precomputed control data: the point-world map H of the entity's free space, φ
+    (goal χ_d = H(x_d), b_ℓ, τ per Prop. 1), the workspace goal, gains and load sharing (``cf`` has one
+    entry per robot driving the entity: [1.0] for a navigation).  Built once when the transition starts;
+    :meth:`evaluate` is the hot path."""
+
+    pw_map: object
+    nf: NavigationFunction
+    goal: np.ndarray
+    gains: AdaptiveGains
+    cf: np.ndarray
+    v_max: float = V_MAX
+    label: str = ""
+
+    @classmethod
+    def build(cls, pw_map, goal, gains: AdaptiveGains, *, k1: float, k2: float, r_bar_cap: float,
+              tau_cap: float, cf: Sequence[float] | int = 1, start=None, v_max: float = V_MAX,
+              label: str = "") -> "NavigationTask":
+        """Task for workspace goal x_d on map H: φ from :meth:`NavigationFunction.for_map`.
+
+        With ``start`` given, τ is also kept below TAU_FRACTION × r̄_s, r̄_s = min(1 − ‖χ_s‖², min_ℓ d_ℓ(χ_s))
+        (χ_s = H(start), the analogue of r̄_d for the start): the entity then starts outside every barrier's
+        region of influence.  Entities packed by P_s sit a few centimetres apart, and a start deep inside a
+        barrier region makes ∇φ, hence v_d and u, astronomically large at t = 0.
+        """
+        goal = np.asarray(goal, dtype=float).reshape(2)
+        if start is not None:
+            chi_s = pw_map(np.asarray(start, dtype=float).reshape(2))
+            r_s = r_bar_d(chi_s, pw_map.hole_points)
+            if not r_s > 0.0:
+                raise ValueError(f"start {np.asarray(start).tolist()} is not inside the point world")
+            tau_cap = min(tau_cap, TAU_FRACTION * r_s)
+        nf = NavigationFunction.for_map(pw_map, goal, k1=k1, k2=k2, r_bar_cap=r_bar_cap, tau_cap=tau_cap)
+        if not v_max > 0.0:
+            raise ValueError(f"v_max must be > 0, got {v_max!r}")
+        return cls(pw_map, nf, goal, gains, load_sharing(cf), float(v_max), label)
+
+    def evaluate(self, x: np.ndarray, xdot: np.ndarray, m_hat: float, alpha_hat: float) -> ControlEval:
+        """The entity's law u and the adaptation rates at state (x, ẋ) and estimates (m̂, α̂)."""
+        g = self.gains
+        v_raw, vdot_raw, J, grad = desired_velocity(self.pw_map, self.nf, x, xdot)
+        v_d, vdot_d = saturate_velocity(v_raw, vdot_raw, self.v_max)
+        e_v = xdot - v_d
+        u = navigation_input(J, grad, vdot_d, e_v, m_hat, alpha_hat, g.k_phi, g.k_v)
+        dm, da = adaptation_rates(e_v, vdot_d, g.k_m, g.k_alpha)
+        return ControlEval(u, dm, da, v_d, vdot_d, e_v)
+
+    def __deepcopy__(self, memo):
+        """Tasks are immutable once built: Drake's abstract-value clones share them instead of copying."""
+        return self
+
+    def member_inputs(self, u: np.ndarray) -> np.ndarray:
+        """u_ℓ = cf_ℓ u, one row per team member."""
+        return transport_inputs(u, self.cf)

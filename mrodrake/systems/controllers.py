@@ -1,0 +1,148 @@
+"""Adaptive navigation / transport controllers as Drake LeafSystems (paper Section III-A).
+
+Continuous state: the adaptation estimates [m̂, α̂] (eq. adaptation law).  Inputs: ``state`` ([x, ẋ] of the
+moving entity: the robot, or the object of a robots-object team) and an optional abstract ``task``.
+Outputs: ``u`` (navigation) or ``u_<member>`` per team member (transport, u_ℓ = cf_ℓ u), and ``estimates``.
+
+Reuse in a full mission diagram (design choice).  Everything that depends on one transition — the
+point-world map of the entity's free space, φ with its b_ℓ, r̄ and τ, the goal and the load sharing — is
+bundled in a precomputed :class:`~mrodrake.control.adaptive.NavigationTask`.  A controller takes the task
+either at construction (single-transition use: the ``task`` port stays unconnected) or per context from its
+abstract ``task`` input, which a supervisor drives: ``None`` disables the controller (zero inputs, frozen
+estimates, so idle controllers do not drift), and a new task object resets the estimates to the task's
+m̂(0), α̂(0) at the start of the next step (a per-step unrestricted update on the controller's own state).
+So one controller per robot (and per team used by a plan) can stay wired for a whole mission while the
+supervisor only swaps tasks.
+
+One cache entry evaluates the law (map, φ, v_d, v̇_d) once per context change; the outputs and the
+estimate derivatives all read it (one map evaluation per derivative evaluation of the closed loop).
+"""
+
+from __future__ import annotations
+
+from typing import Sequence
+
+import numpy as np
+from pydrake.common.value import AbstractValue
+from pydrake.systems.framework import BasicVector, ContinuousStateIndex, EventStatus, LeafSystem, ValueProducer
+
+from mrodrake.control.adaptive import AdaptiveGains, ControlEval, NavigationTask
+
+_ZERO = ControlEval(np.zeros(2), 0.0, 0.0, np.zeros(2), np.zeros(2), np.zeros(2))
+
+
+class _TaskBox:
+    """Holder for the task the current estimates belong to (abstract state)."""
+
+    __slots__ = ("task",)
+
+    def __init__(self, task):
+        self.task = task
+
+    def __deepcopy__(self, memo):  # Drake clones abstract values by deepcopy: share the (immutable) task
+        return _TaskBox(self.task)
+
+
+class _AdaptiveController(LeafSystem):
+    """Shared part: estimates state, ``state``/``task`` inputs, cached law, ``estimates`` output."""
+
+    def __init__(self, task: NavigationTask | None, gains: AdaptiveGains | None, name: str):
+        super().__init__()
+        self.set_name(name)
+        self._task = task
+        g = gains if gains is not None else (task.gains if task is not None else AdaptiveGains())
+        self.DeclareContinuousState(BasicVector([g.m_hat0, g.alpha_hat0]))
+        self.state_port = self.DeclareVectorInputPort("state", 4)
+        self.task_port = self.DeclareAbstractInputPort("task", AbstractValue.Make(task))
+        self._box_index = self.DeclareAbstractState(AbstractValue.Make(_TaskBox(task)))
+        self._law = self.DeclareCacheEntry(
+            "adaptive law",
+            ValueProducer(allocate=lambda: AbstractValue.Make(_ZERO), calc=self._CalcLaw),
+            prerequisites_of_calc={self.state_port.ticket(), self.task_port.ticket(), self.xc_ticket()},
+        )
+        self.estimates_port = self.DeclareStateOutputPort("estimates", ContinuousStateIndex(0))
+        self.DeclarePerStepUnrestrictedUpdateEvent(self._ResetOnNewTask)
+        self._u_prereqs = {self._law.ticket(), self.task_port.ticket()}
+
+    # ------------------------------------------------------------------ task handling
+    def active_task(self, context) -> NavigationTask | None:
+        """The task in force: the ``task`` input if connected, else the construction-time task."""
+        if self.task_port.HasValue(context):
+            return self.task_port.Eval(context)
+        return self._task
+
+    def _ResetOnNewTask(self, context, state):
+        task = self.active_task(context)
+        box = context.get_abstract_state(int(self._box_index)).get_value()
+        if task is box.task:
+            return EventStatus.DidNothing()  # leaves the context (and its caches) untouched
+        state.get_mutable_abstract_state(int(self._box_index)).set_value(_TaskBox(task))
+        if task is not None:
+            state.get_mutable_continuous_state().SetFromVector([task.gains.m_hat0, task.gains.alpha_hat0])
+        return EventStatus.Succeeded()
+
+    def set_estimates(self, context, m_hat: float, alpha_hat: float) -> None:
+        """Set [m̂, α̂] in this controller's (sub)context."""
+        context.SetContinuousState([float(m_hat), float(alpha_hat)])
+
+    # ------------------------------------------------------------------ evaluation
+    def _CalcLaw(self, context, value):
+        task = self.active_task(context)
+        if task is None:
+            value.set_value(_ZERO)
+            return
+        s = self.state_port.Eval(context)
+        est = context.get_continuous_state_vector().value()
+        value.set_value(task.evaluate(s[:2], s[2:], est[0], est[1]))
+
+    def law(self, context) -> ControlEval:
+        """The cached evaluation of the law in ``context``."""
+        return self._law.Eval(context)
+
+    def DoCalcTimeDerivatives(self, context, derivatives):
+        ev = self._law.Eval(context)
+        derivatives.get_mutable_vector().SetFromVector([ev.m_hat_dot, ev.alpha_hat_dot])
+
+
+class NavigationController(_AdaptiveController):
+    """Adaptive navigation law of one robot (paper Sec. III-A 1)): output ``u`` (2)."""
+
+    def __init__(self, task: NavigationTask | None = None, gains: AdaptiveGains | None = None,
+                 name: str = "navigation_controller"):
+        super().__init__(task, gains, name)
+        self.u_port = self.DeclareVectorOutputPort("u", 2, self.CalcU, prerequisites_of_calc=self._u_prereqs)
+
+    def CalcU(self, context, output):
+        output.SetFromVector(self._law.Eval(context).u)
+
+
+class TransportController(_AdaptiveController):
+    """Adaptive transport law of a robots-object team (paper Sec. III-A 2)): the navigation law of the
+    coupled entity with estimates m̂_A,j, α̂_A,j, split as u_ℓ = cf_ℓ u to outputs ``u_<member>``; the
+    total entity input is also available as ``u``.  ``task.cf`` must have one entry per member."""
+
+    def __init__(self, members: Sequence[str], task: NavigationTask | None = None,
+                 gains: AdaptiveGains | None = None, name: str = "transport_controller"):
+        members = list(members)
+        if not members or len(set(members)) != len(members):
+            raise ValueError(f"members must be distinct and non-empty, got {members}")
+        if task is not None and len(task.cf) != len(members):
+            raise ValueError(f"task has {len(task.cf)} load-sharing coefficients for {len(members)} members")
+        super().__init__(task, gains, name)
+        self.members = members
+        self.u_port = self.DeclareVectorOutputPort("u", 2, self.CalcU, prerequisites_of_calc=self._u_prereqs)
+        self.member_u_ports = [
+            self.DeclareVectorOutputPort(f"u_{n}", 2, self._member_calc(k), prerequisites_of_calc=self._u_prereqs)
+            for k, n in enumerate(members)
+        ]
+
+    def CalcU(self, context, output):
+        output.SetFromVector(self._law.Eval(context).u)
+
+    def _member_calc(self, k: int):
+        def CalcMemberU(context, output):
+            task = self.active_task(context)
+            cf = task.cf[k] if task is not None else 0.0
+            output.SetFromVector(cf * self._law.Eval(context).u)
+
+        return CalcMemberU

@@ -1,0 +1,545 @@
+"""Mission execution in ONE Drake diagram (paper Section III-A, sequential execution of the plan).
+
+Diagram (built once by :class:`Mission`):
+
+* one :class:`SyncedRobotPlant` per robot and one :class:`SyncedObjectPlant` per object, one
+  :class:`SyncedCoupledPlant` + one ``TransportController`` per (object, team) pair of the plan's Transport
+  actions, one ``NavigationController`` per robot (navigation, docking and backing off are navigations);
+* one ``PortSwitch`` per robot and per object selecting its authoritative [x, ẋ] (own plant or the coupled
+  plant's output); everything downstream (controllers, supervisor, logger) reads the switch outputs;
+* the :class:`~mrodrake.systems.supervisor.Supervisor` drives every controller's ``task``, every plant's
+  ``sync`` and every switch's selector; a :class:`MissionLogger` samples all entities and active controllers
+  at a fixed rate.
+
+The plants are the ones of :mod:`mrodrake.systems.plants` with an abstract ``sync`` input (see
+:class:`~mrodrake.systems.supervisor.SyncCommand`): a per-step unrestricted update copies the commanded
+[x, ẋ] into the plant's own state when the command's version changes (an event may change only its own
+system's state), and a parked plant has zero dynamics.  Engaging a coupling syncs the coupled plant to the
+object's state with the ACTUAL member offsets (robots stay where they docked: no jump); releasing syncs the
+object and member plants to the coupled plant's outputs.
+
+The Simulator advances the whole mission with one ``AdvanceTo``; the supervisor ends it.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+import pandas as pd
+from pydrake.common.value import AbstractValue
+from pydrake.systems.analysis import ApplySimulatorConfig, Simulator, SimulatorConfig
+from pydrake.systems.framework import DiagramBuilder, EventStatus, LeafSystem
+from pydrake.systems.primitives import PortSwitch
+
+from mrodrake.control.adaptive import AdaptiveGains
+from mrodrake.errors import UserError
+from mrodrake.scenario import Scenario, load_scenario
+from mrodrake.systems.controllers import NavigationController, TransportController
+from mrodrake.systems.plants import CoupledPlant, ObjectPlant, RobotPlant
+from mrodrake.systems.supervisor import Supervisor, SyncCommand
+from mrodrake.systems.transition import build_task, entity_layout
+from mrodrake.ts import Transport, TransitionSystem
+
+
+# ------------------------------------------------------------------------------------------ plant wrappers
+def _declare_sync(plant) -> None:
+    plant.sync_port = plant.DeclareAbstractInputPort("sync", AbstractValue.Make(SyncCommand()))
+    plant._version_index = plant.DeclareAbstractState(AbstractValue.Make(-1))
+    plant.DeclarePerStepUnrestrictedUpdateEvent(plant._Sync)
+
+
+def _apply_sync(plant, context, state) -> None:
+    cmd = plant.sync_port.Eval(context)
+    if cmd.version == context.get_abstract_state(int(plant._version_index)).get_value():
+        return
+    state.get_mutable_abstract_state(int(plant._version_index)).set_value(int(cmd.version))
+    state.get_mutable_continuous_state().SetFromVector(np.concatenate([cmd.x, cmd.v]))
+
+
+class SyncedRobotPlant(RobotPlant):
+    """RobotPlant with an abstract ``sync`` input (state reset by version, parking brake)."""
+
+    def __init__(self, *args, **kwargs):
+        super().__init__(*args, **kwargs)
+        _declare_sync(self)
+
+    def _Sync(self, context, state):
+        _apply_sync(self, context, state)
+
+    def DoCalcTimeDerivatives(self, context, derivatives):
+        if self.sync_port.Eval(context).frozen:
+            derivatives.get_mutable_vector().SetZero()
+            return
+        super().DoCalcTimeDerivatives(context, derivatives)
+
+
+class SyncedObjectPlant(ObjectPlant):
+    """ObjectPlant with an abstract ``sync`` input (state reset by version, parking brake)."""
+
+    def __init__(self, *args, **kwargs):
+        super().__init__(*args, **kwargs)
+        _declare_sync(self)
+
+    def _Sync(self, context, state):
+        _apply_sync(self, context, state)
+
+    def DoCalcTimeDerivatives(self, context, derivatives):
+        if self.sync_port.Eval(context).frozen:
+            derivatives.get_mutable_vector().SetZero()
+            return
+        super().DoCalcTimeDerivatives(context, derivatives)
+
+
+class SyncedCoupledPlant(CoupledPlant):
+    """CoupledPlant whose grasp offsets come from the ``sync`` command (the members' actual offsets at
+    engagement); outputs ``member_<name>`` = [x^o + offset_i, ẋ^o] (eq. coupled dynamics)."""
+
+    def __init__(self, object_mass, object_friction, members, member_masses, member_frictions, name="team"):
+        super().__init__(object_mass, object_friction, members, member_masses, member_frictions,
+                         np.zeros((len(members), 2)), name=name)
+        _declare_sync(self)
+        pre = {self.xc_ticket(), self.sync_port.ticket()}
+        self.member_ports = [self.DeclareVectorOutputPort(f"member_{n}", 4, self._member_out(k),
+                                                          prerequisites_of_calc=pre)
+                             for k, n in enumerate(self.members)]
+
+    def _offsets(self, context) -> np.ndarray:
+        off = self.sync_port.Eval(context).offsets
+        return np.asarray(off, dtype=float).reshape(len(self.members), 2) if len(off) else np.zeros((len(self.members), 2))
+
+    def _member_out(self, k: int):
+        def calc(context, output):
+            s = context.get_continuous_state_vector().CopyToVector()
+            s[:2] += self._offsets(context)[k]
+            output.SetFromVector(s)
+        return calc
+
+    def _Sync(self, context, state):
+        _apply_sync(self, context, state)
+
+    def DoCalcTimeDerivatives(self, context, derivatives):
+        cmd = self.sync_port.Eval(context)
+        if cmd.frozen:
+            derivatives.get_mutable_vector().SetZero()
+            return
+        s = context.get_continuous_state_vector().value()
+        x, v = s[:2], s[2:]
+        offsets = self._offsets(context)
+        m_total, f_total = self._body_friction(context, 0, x, v)
+        u = np.zeros(2)
+        for k, port in enumerate(self.u_ports):
+            m_k, f_k = self._body_friction(context, k + 1, x + offsets[k], v)
+            m_total += m_k
+            f_total = f_total + f_k
+            u += port.Eval(context)
+        derivatives.get_mutable_vector().SetFromVector(np.concatenate([v, (u - f_total) / m_total]))
+
+
+# ------------------------------------------------------------------------------------------ logger
+class MissionLogger(LeafSystem):
+    """Samples every entity's routed [x, ẋ] and every active controller's u, m̂, α̂ every ``period`` s
+    (periodic publish; the samples are kept in Python lists on this system, cleared by :meth:`clear`)."""
+
+    def __init__(self, entities, controllers, period: float):
+        super().__init__()
+        self.set_name("mission_logger")
+        self.entities = list(entities)
+        self.controllers = dict(controllers)  # name -> (entity, members)
+        self.state_ports = [self.DeclareVectorInputPort(f"state_{e}", 4) for e in self.entities]
+        self.u_ports, self.est_ports, self.task_ports = {}, {}, {}
+        for c in self.controllers:
+            self.u_ports[c] = self.DeclareVectorInputPort(f"u_{c}", 2)
+            self.est_ports[c] = self.DeclareVectorInputPort(f"est_{c}", 2)
+            self.task_ports[c] = self.DeclareAbstractInputPort(f"task_{c}", AbstractValue.Make(None))
+        self.DeclarePeriodicPublishEvent(float(period), 0.0, self._Sample)
+        self.clear()
+
+    def clear(self) -> None:
+        self.times: list[float] = []
+        self.states: list[np.ndarray] = []
+        self.signals: list[tuple] = []
+
+    def _Sample(self, context):
+        t = float(context.get_time())
+        if self.times and t <= self.times[-1]:
+            return EventStatus.DidNothing()
+        self.times.append(t)
+        self.states.append(np.concatenate([p.Eval(context) for p in self.state_ports]))
+        for c, (entity, members) in self.controllers.items():
+            task = self.task_ports[c].Eval(context)
+            if task is None:
+                continue
+            u = self.u_ports[c].Eval(context)
+            m, a = self.est_ports[c].Eval(context)
+            self.signals.append((t, c, entity, float(u[0]), float(u[1]), float(m), float(a)))
+            for k, r in enumerate(members):
+                self.signals.append((t, c, r, float(task.cf[k] * u[0]), float(task.cf[k] * u[1]), float(m),
+                                     float(a)))
+        return EventStatus.Succeeded()
+
+
+# ------------------------------------------------------------------------------------------ log
+@dataclass
+class MissionLog:
+    """Everything recorded by a mission run (pandas DataFrames) and its outcome.
+
+    ``trajectory``: t, entity, x, y, vx, vy (every robot and object, uniform sampling);
+    ``signals``: t, controller, entity, ux, uy, m_hat, alpha_hat (active controllers; a transport has one
+    row for the object (entity input u) and one per member (u_ℓ = cf_ℓ u));
+    ``events``: kind (primitive / label / order), t_start, t_end, step, plan_step, action, entities,
+    from_region, to_region, ok, propositions, nba_states, detail;
+    ``grasps``: t_start, t_end, robot, object (docked intervals, for the replay).
+    """
+
+    scenario: Scenario
+    plan: object
+    trajectory: pd.DataFrame
+    signals: pd.DataFrame
+    events: pd.DataFrame
+    grasps: pd.DataFrame
+    ok: bool
+    message: str
+    final_state: dict | None
+    expected_final_state: dict
+    steps_done: int
+    steps_total: int
+    sim_seconds: float
+    wall_seconds: float
+    primitives: list = field(default_factory=list)
+    nba_run: list = field(default_factory=list)
+
+    @property
+    def primitive_events(self) -> pd.DataFrame:
+        return self.events[self.events["kind"] == "primitive"]
+
+    def summary(self) -> str:
+        prim = self.primitive_events
+        return (f"{'ok' if self.ok else 'FAILED'}: {int(prim['ok'].sum())}/{len(prim)} primitives ok, "
+                f"{self.steps_done}/{self.steps_total} plan steps, simulated {self.sim_seconds:.1f} s in "
+                f"{self.wall_seconds:.1f} s wall" + ("" if self.ok else f" ({self.message})"))
+
+    # ------------------------------------------------------------------ figures
+    def transition_result(self, record):
+        """A :class:`~mrodrake.systems.transition.TransitionResult` of one executed motion (for viz.figures)."""
+        from mrodrake.systems.transition import TransitionResult
+
+        tr = self.trajectory
+        seg = tr[(tr["entity"] == record.entity) & (tr["t"] >= record.t_start) & (tr["t"] <= record.t_end)]
+        sig = self.signals[(self.signals["controller"] == record.controller)
+                           & (self.signals["entity"] == record.entity)]
+        log = seg[["t", "x", "y", "vx", "vy"]].merge(sig[["t", "ux", "uy", "m_hat", "alpha_hat"]], on="t",
+                                                     how="inner").reset_index(drop=True)
+        kind = "transport" if record.kind == "transport" else "navigate"
+        return TransitionResult(scenario=self.scenario, kind=kind, entity=record.entity, team=list(record.team),
+                                src=record.src, dst=record.dst, radius=record.radius, start=record.start,
+                                goal=record.goal, others=list(record.others), free=record.free, task=record.task,
+                                log=log, reached=True, status="", t_final=record.t_end, offsets=record.offsets)
+
+    def figure_initial(self, path=None):
+        """Paper Fig. 1 analogue: the workspace, regions (labelled) and every entity at t = 0."""
+        from matplotlib.figure import Figure
+        from matplotlib.patches import Circle, Polygon as MplPolygon
+
+        s = self.scenario
+        fig = Figure(figsize=(8, 7.5))
+        ax = fig.subplots()
+        ax.add_patch(MplPolygon(s.workspace.boundary, closed=True, fill=False, edgecolor="k", linewidth=0.8))
+        for o in s.workspace.obstacles:
+            ax.add_patch(MplPolygon(o.polygon, closed=True, facecolor="#808080", edgecolor="#404040"))
+        for g in s.regions:
+            ax.add_patch(Circle(g.center, g.radius, fill=True, facecolor="#cfe8cf", edgecolor="#2a9d3a"))
+            ax.annotate(g.name, (g.center[0], g.center[1] + g.radius + 1.0), ha="center", fontsize=8)
+        t0 = self.trajectory[self.trajectory["t"] == self.trajectory["t"].min()]
+        rad = {r.name: r.radius for r in s.robots} | {o.name: o.radius for o in s.objects}
+        for _, row in t0.iterrows():
+            robot = row["entity"] in s.robot_names
+            ax.add_patch(Circle((row["x"], row["y"]), rad[row["entity"]],
+                                facecolor="#1f5fbf" if robot else "#d62728", edgecolor="k", linewidth=0.3))
+        bx = np.asarray(s.workspace.boundary)
+        ax.set_xlim(bx[:, 0].min() - 2, bx[:, 0].max() + 2)
+        ax.set_ylim(bx[:, 1].min() - 2, bx[:, 1].max() + 2)
+        ax.set_aspect("equal")
+        ax.set_xlabel("x [m]")
+        ax.set_ylabel("y [m]")
+        ax.set_title(f"{s.name}: initial configuration (robots blue, objects red)", fontsize=10)
+        if path is not None:
+            fig.savefig(path, dpi=150, bbox_inches="tight")
+        return fig
+
+    def write(self, out_dir) -> list[Path]:
+        """Write plan.json, plan.csv, trajectory.csv, signals.csv, events.csv, replay.html and figures/."""
+        from mrodrake.viz.figures import figure_signals, figure_trajectory
+        from mrodrake.viz.replay import write_replay
+
+        out = Path(out_dir)
+        (out / "figures").mkdir(parents=True, exist_ok=True)
+        written = []
+
+        def add(p):
+            written.append(Path(p))
+
+        self.plan.write(out / "plan.json")
+        add(out / "plan.json")
+        self.plan.table().to_csv(out / "plan.csv", index=False)
+        add(out / "plan.csv")
+        for name, df in (("trajectory", self.trajectory), ("signals", self.signals), ("events", self.events)):
+            df.to_csv(out / f"{name}.csv", index=False, float_format="%.10g")
+            add(out / f"{name}.csv")
+        if len(self.trajectory):
+            add(write_replay(self.scenario, self.trajectory, out / "replay.html", grasps=self.grasps))
+            self.figure_initial(out / "figures" / "fig1_initial.png")
+            add(out / "figures" / "fig1_initial.png")
+        navs = [r for r in self.primitives if r.kind == "navigate"]
+        trans = [r for r in self.primitives if r.kind == "transport"]
+        for tag, recs, f_traj, f_sig in (("navigation", navs, "fig2_navigation", "fig3_navigation_signals"),
+                                         ("transport", trans, "fig4_transport", "fig5_transport_signals")):
+            if not recs:
+                continue
+            res = self.transition_result(max(recs, key=lambda r: r.t_end - r.t_start))
+            if len(res.log) < 2:
+                continue
+            figure_trajectory(res, out / "figures" / f"{f_traj}_{res.entity}.png")
+            figure_signals(res, out / "figures" / f"{f_sig}_{res.entity}.png")
+            add(out / "figures" / f"{f_traj}_{res.entity}.png")
+            add(out / "figures" / f"{f_sig}_{res.entity}.png")
+        return written
+
+
+# ------------------------------------------------------------------------------------------ mission
+class Mission:
+    """One Drake diagram executing ``plan`` (prefix + ``suffix_cycles`` suffix cycles) on ``scenario``."""
+
+    def __init__(self, scenario: Scenario, plan, suffix_cycles: int = 1, seed: int = 0, *, log_period: float = 0.5,
+                 check_period: float = 0.5, accuracy: float = 1e-4, max_step: float = 2.0,
+                 integrator: str = "runge_kutta3", rest_speed: float | None = None):
+        from mrodrake.planning.plan import task_nba
+
+        if suffix_cycles < 0:
+            raise UserError(f"--suffix-cycles: must be >= 0, got {suffix_cycles}")
+        if plan.scenario != scenario.name:
+            raise UserError(f"plan: made for scenario '{plan.scenario}', not '{scenario.name}'")
+        self.scenario, self.plan, self.seed = scenario, plan, int(seed)
+        self.ts = plan.ts if plan.ts is not None else TransitionSystem(scenario)
+        self.formula, self.nba = task_nba(scenario, self.ts)
+        couplings = []
+        for acts in plan.actions:
+            for a in acts:
+                if isinstance(a, Transport) and (a.obj, tuple(a.team)) not in couplings:
+                    couplings.append((a.obj, tuple(a.team)))
+        layout = entity_layout(scenario, seed=self.seed)
+        init = {n: d.center for n, d in layout.items()}
+
+        b = DiagramBuilder()
+        robots, objects = scenario.robot_names, scenario.object_names
+        self.robot_plants = {r.name: b.AddSystem(SyncedRobotPlant(r.mass, r.friction, name=r.name))
+                             for r in scenario.robots}
+        self.object_plants = {o.name: b.AddSystem(SyncedObjectPlant(o.mass, o.friction, name=o.name))
+                              for o in scenario.objects}
+        gains = AdaptiveGains.from_scenario(scenario.control)
+        self.nav_ctrls = {r: b.AddSystem(NavigationController(None, gains, name=f"nav_{r}")) for r in robots}
+        switches = {e: b.AddSystem(PortSwitch(4)) for e in robots + objects}
+        for e, sw in switches.items():
+            sw.set_name(f"switch_{e}")
+        own = {}
+        for e in robots:
+            own[e] = switches[e].DeclareInputPort(f"{e}_own")
+            b.Connect(self.robot_plants[e].state_port, own[e])
+        for e in objects:
+            own[e] = switches[e].DeclareInputPort(f"{e}_own")
+            b.Connect(self.object_plants[e].state_port, own[e])
+        route_ports = {}
+        self.coupled, self.team_ctrls = {}, {}
+        names = []
+        for j, team in couplings:
+            o = scenario.objects[j]
+            rs = [scenario.robots[i] for i in team]
+            name = f"{o.name}_{'+'.join(r.name for r in rs)}"
+            names.append(name)
+            cp = b.AddSystem(SyncedCoupledPlant(o.mass, o.friction, [r.name for r in rs], [r.mass for r in rs],
+                                                [r.friction for r in rs], name=name))
+            tc = b.AddSystem(TransportController([r.name for r in rs], None, gains, name=name + "_ctrl"))
+            self.coupled[name], self.team_ctrls[name] = cp, tc
+            for u_out, u_in in zip(tc.member_u_ports, cp.u_ports):
+                b.Connect(u_out, u_in)
+            b.Connect(cp.state_port, tc.state_port)
+            port = switches[o.name].DeclareInputPort(f"{name}")
+            b.Connect(cp.state_port, port)
+            route_ports[(o.name, name)] = int(port.get_index())
+            for k, r in enumerate(rs):
+                port = switches[r.name].DeclareInputPort(f"{name}")
+                b.Connect(cp.member_ports[k], port)
+                route_ports[(r.name, name)] = int(port.get_index())
+        for e in robots:
+            b.Connect(switches[e].get_output_port(), self.nav_ctrls[e].state_port)
+            b.Connect(self.nav_ctrls[e].u_port, self.robot_plants[e].u_port)
+
+        def make_task(scn, free, n_members, label=""):
+            return build_task(scn, free, n_members, label=label)
+
+        kw = {} if rest_speed is None else {"rest_speed": rest_speed}
+        self.supervisor = b.AddSystem(Supervisor(
+            scenario, self.ts, self.nba, plan, suffix_cycles=suffix_cycles, seed=self.seed, couplings=couplings,
+            route_ports=route_ports, initial_positions=init, period=check_period, build_task=make_task, **kw))
+        sup = self.supervisor
+        for k, e in enumerate(robots + objects):
+            b.Connect(switches[e].get_output_port(), sup.state_ports[k])
+            b.Connect(sup.select_ports[e], switches[e].get_port_selector_input_port())
+        for e, p in list(self.robot_plants.items()) + list(self.object_plants.items()) + list(self.coupled.items()):
+            b.Connect(sup.sync_ports[e], p.sync_port)
+        for r in robots:
+            b.Connect(sup.task_ports[f"nav_{r}"], self.nav_ctrls[r].task_port)
+        for name, tc in self.team_ctrls.items():
+            b.Connect(sup.task_ports[name + "_ctrl"], tc.task_port)
+        ctrl_info = {f"nav_{r}": (r, ()) for r in robots}
+        for name, cp in self.coupled.items():
+            ctrl_info[name + "_ctrl"] = (cp_object(name, objects), tuple(cp.members))
+        self.logger = b.AddSystem(MissionLogger(robots + objects, ctrl_info, log_period))
+        for k, e in enumerate(robots + objects):
+            b.Connect(switches[e].get_output_port(), self.logger.state_ports[k])
+        for r in robots:
+            c = f"nav_{r}"
+            b.Connect(self.nav_ctrls[r].u_port, self.logger.u_ports[c])
+            b.Connect(self.nav_ctrls[r].estimates_port, self.logger.est_ports[c])
+            b.Connect(sup.task_ports[c], self.logger.task_ports[c])
+        for name, tc in self.team_ctrls.items():
+            c = name + "_ctrl"
+            b.Connect(tc.u_port, self.logger.u_ports[c])
+            b.Connect(tc.estimates_port, self.logger.est_ports[c])
+            b.Connect(sup.task_ports[c], self.logger.task_ports[c])
+        self.diagram = b.Build()
+        self.diagram.set_name("mission")
+
+        self.simulator = Simulator(self.diagram)
+        ApplySimulatorConfig(SimulatorConfig(integration_scheme=integrator, accuracy=accuracy,
+                                             max_step_size=max_step, use_error_control=True), self.simulator)
+        ctx = self.simulator.get_mutable_context()
+        for e, p in list(self.robot_plants.items()) + list(self.object_plants.items()):
+            p.set_state(p.GetMyMutableContextFromRoot(ctx), init[e], (0.0, 0.0))
+        for name, cp in self.coupled.items():
+            cp.set_state(cp.GetMyMutableContextFromRoot(ctx), init[cp_object(name, objects)], (0.0, 0.0))
+        self.initial_positions = init
+        self.sim_seconds = 0.0
+        self.wall_seconds = 0.0
+        self._stop = False
+
+    # ------------------------------------------------------------------ running
+    @property
+    def total_steps(self) -> int:
+        return len(self.supervisor.steps)
+
+    def supervisor_state(self):
+        return self.supervisor.sup_state(self.supervisor.GetMyContextFromRoot(self.simulator.get_context()))
+
+    def steps_done(self) -> int:
+        st = self.supervisor_state()
+        if st.status == "done":
+            return self.total_steps
+        return max(0, st.step_idx)
+
+    def request_stop(self) -> None:
+        """Ask a running :meth:`run` to stop at the next integration step (e.g. from a SIGINT handler)."""
+        self._stop = True
+
+    def run(self, progress: Callable[[int, int], None] | None = None, t_max: float = 1e7) -> "MissionLog":
+        """Simulate until the supervisor ends the mission (one ``AdvanceTo``); ``progress(done, total)`` is
+        called whenever a plan step completes.  Returns :meth:`log`."""
+        sim = self.simulator
+        last = [-1]
+
+        def monitor(root_context):
+            if self._stop:
+                return EventStatus.ReachedTermination(self.diagram, "stopped by the user")
+            if progress is not None:
+                done = self.steps_done()
+                if done != last[0]:
+                    last[0] = done
+                    progress(done, self.total_steps)
+            return EventStatus.Succeeded()
+
+        sim.set_monitor(monitor)
+        t0 = time.perf_counter()
+        try:
+            sim.AdvanceTo(float(t_max))
+        finally:
+            self.wall_seconds += time.perf_counter() - t0
+            sim.clear_monitor()
+        if progress is not None:
+            progress(self.steps_done(), self.total_steps)
+        return self.log()
+
+    # ------------------------------------------------------------------ log
+    def log(self) -> MissionLog:
+        """The recorded trajectory, signals and events so far (pandas DataFrames)."""
+        st = self.supervisor_state()
+        lg = self.logger
+        ents = lg.entities
+        if lg.times:
+            T = np.asarray(lg.times)
+            S = np.asarray(lg.states).reshape(len(T), len(ents), 4)
+            traj = pd.DataFrame({"t": np.repeat(T, len(ents)), "entity": np.tile(ents, len(T)),
+                                 "x": S[:, :, 0].ravel(), "y": S[:, :, 1].ravel(), "vx": S[:, :, 2].ravel(),
+                                 "vy": S[:, :, 3].ravel()})
+        else:
+            traj = pd.DataFrame(columns=["t", "entity", "x", "y", "vx", "vy"])
+        sig = pd.DataFrame(lg.signals, columns=["t", "controller", "entity", "ux", "uy", "m_hat", "alpha_hat"])
+        ev_cols = ["kind", "t_start", "t_end", "step", "plan_step", "action", "entities", "from_region", "to_region",
+                   "ok", "propositions", "nba_states", "detail"]
+        events = pd.DataFrame(list(st.events), columns=ev_cols)
+        t_now = float(self.simulator.get_context().get_time())
+        grasps = list(st.grasps) + [(t0, t_now, self.scenario.robot_names[i], self.scenario.object_names[
+            st.docked[i]]) for i, t0 in st.grasp_open.items()]
+        grasps = pd.DataFrame(grasps, columns=["t_start", "t_end", "robot", "object"])
+        final = None
+        if lg.times:
+            X = np.asarray(lg.states[-1]).reshape(len(ents), 4)
+            s = self.supervisor.discrete_state(st, X)
+            final = self.ts.state_dict(s) if min(s[: len(ents)]) >= 0 else {"raw": list(s)}
+        steps = self.supervisor.steps
+        expected = self.ts.state_dict(steps[-1].dst) if steps else self.ts.state_dict(self.ts.initial)
+        ok = st.status == "done"
+        message = st.message if st.status != "running" else "not finished"
+        return MissionLog(self.scenario, self.plan, traj, sig, events, grasps, ok, message, final, expected,
+                          self.steps_done(), self.total_steps, t_now, self.wall_seconds, list(st.primitives),
+                          sorted(st.run))
+
+
+def cp_object(name: str, objects) -> str:
+    """Object name of a coupled plant named ``<object>_<r1>+<r2>...``."""
+    for o in sorted(objects, key=len, reverse=True):
+        if name.startswith(o + "_"):
+            return o
+    raise ValueError(f"no object in coupled plant name {name!r}")
+
+
+def run_mission(scenario, plan=None, planner: str = "stylus", suffix_cycles: int = 1, seed: int = 0,
+                out_dir=None, progress: Callable[[int, int], None] | None = None, **mission_options) -> MissionLog:
+    """Plan (unless ``plan`` is given: a Plan or a plan.json path), simulate the prefix and ``suffix_cycles``
+    suffix cycles in one diagram, write the outputs to ``out_dir`` (if given) and return the log."""
+    from mrodrake.planning.plan import Plan, plan_scenario, task_nba
+
+    if not isinstance(scenario, Scenario):
+        scenario = load_scenario(scenario)
+    if plan is None:
+        plan = plan_scenario(scenario, planner, seed=None if planner == "exact" else seed)
+    elif not hasattr(plan, "steps"):
+        path = Path(plan)
+        if not path.is_file():
+            raise UserError(f"--plan: file '{path}' not found")
+        ts = TransitionSystem(scenario)
+        plan = Plan.from_json(path.read_text(encoding="utf-8"), ts, source=str(path))
+        formula, nba = task_nba(scenario, ts)
+        from mrodrake.planning.plan import PlanVerificationError
+
+        try:
+            plan.verify(ts, nba, formula)
+        except PlanVerificationError as exc:
+            raise UserError(f"{path}: plan does not verify: {exc}") from None
+    mission = Mission(scenario, plan, suffix_cycles=suffix_cycles, seed=seed, **mission_options)
+    log = mission.run(progress)
+    if out_dir is not None:
+        log.write(out_dir)
+    return log

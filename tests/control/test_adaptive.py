@@ -1,0 +1,171 @@
+"""Adaptive navigation / transport laws (paper Sec. III-A), pure numpy."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+from scipy.integrate import solve_ivp
+from shapely.geometry import Point, box
+
+from mrodrake.control.adaptive import (
+    AdaptiveGains,
+    NavigationTask,
+    adaptation_rates,
+    load_sharing,
+    navigation_input,
+    saturate_velocity,
+    transport_inputs,
+)
+from mrodrake.control.navfunc import TAU_FRACTION, r_bar_d
+from mrodrake.control.pointworld import PointWorldMap
+from mrodrake.systems.plants import friction
+
+finite = st.floats(-50, 50, allow_nan=False)
+vec = st.tuples(finite, finite).map(np.array)
+
+# A 20 m x 12 m room with a round pillar and a square cabinet: small enough to build in ~50 ms.
+ROOM = box(0, 0, 20, 12).difference(Point(6, 6).buffer(1.5)).difference(box(12, 4, 14, 8))
+START, GOAL = np.array([2.0, 2.0]), np.array([18.0, 10.0])
+
+
+@pytest.fixture(scope="module")
+def room_map():
+    return PointWorldMap.build(ROOM)
+
+
+def make_task(pw, start=START, goal=GOAL, v_max=2.0, gains=AdaptiveGains(), cf=1):
+    return NavigationTask.build(pw, goal, gains, k1=1.0, k2=1.0, r_bar_cap=0.1, tau_cap=0.01, cf=cf,
+                                start=start, v_max=v_max)
+
+
+def test_navigation_input_cancels_the_lyapunov_cross_term():
+    """e_vᵀ(u − m̂ v̇_d + (k_v + 3/2 α̂) e_v) = −k_φ e_vᵀ J_Hᵀ ∇φ: the term that cancels k_φ ∇φᵀ J_H e_v."""
+    rng = np.random.default_rng(3)
+    for _ in range(50):
+        J, g, vd, ev = rng.normal(size=(2, 2)), rng.normal(size=2), rng.normal(size=2), rng.normal(size=2)
+        m, a, kp, kv = rng.uniform(0.1, 3, size=4)
+        u = navigation_input(J, g, vd, ev, m, a, kp, kv)
+        assert ev @ (u - m * vd + (kv + 1.5 * a) * ev) == pytest.approx(-kp * ev @ J.T @ g, abs=1e-12)
+        np.testing.assert_allclose(u, -kp * J.T @ g + m * vd - (kv + 1.5 * a) * ev, atol=1e-12)
+
+
+@given(vec, vec)
+def test_adaptation_rates(ev, vd):
+    dm, da = adaptation_rates(ev, vd, 0.3, 0.7)
+    assert dm == pytest.approx(-0.3 * float(ev @ vd))
+    assert da == pytest.approx(0.7 * float(ev @ ev)) and da >= 0.0
+
+
+@given(vec, vec, st.floats(0.1, 10))
+def test_saturation_is_a_positive_rescaling_below_v_max(v, vdot, v_max):
+    s, _ = saturate_velocity(v, vdot, v_max)
+    assert np.linalg.norm(s) < v_max
+    c = 1.0 / math.sqrt(1.0 + (v @ v) / v_max**2)
+    np.testing.assert_allclose(s, c * v, rtol=1e-12, atol=1e-300)
+
+
+@given(vec, vec, st.floats(0.1, 10))
+def test_saturation_derivative_is_exact(v, vdot, v_max):
+    """Dσ(v) v̇ equals the central difference of σ along v + h v̇ (error O(h²))."""
+    _, ds = saturate_velocity(v, vdot, v_max)
+    h = 1e-5 * max(1.0, float(np.linalg.norm(v))) / max(1.0, float(np.linalg.norm(vdot)))
+    fd = (saturate_velocity(v + h * vdot, vdot, v_max)[0] - saturate_velocity(v - h * vdot, vdot, v_max)[0]) / (2 * h)
+    np.testing.assert_allclose(ds, fd, atol=1e-6 * (1.0 + np.linalg.norm(vdot)))
+
+
+def test_no_saturation_for_infinite_v_max():
+    v, vdot = np.array([300.0, -4.0]), np.array([1.0, 2.0])
+    s, ds = saturate_velocity(v, vdot, math.inf)
+    assert s is v and ds is vdot
+
+
+@given(st.lists(st.floats(0, 10), min_size=1, max_size=6).filter(lambda w: sum(w) > 1e-3), vec)
+def test_transport_split_sums_to_the_entity_law(w, u):
+    cf = load_sharing(np.array(w) / sum(w))
+    parts = transport_inputs(u, cf)
+    assert parts.shape == (len(w), 2)
+    np.testing.assert_allclose(parts.sum(axis=0), u, atol=1e-9 * (1 + np.abs(u).max()))
+    for k in range(len(w)):
+        assert parts[k] @ u >= -1e-12  # each robot pushes along the entity law (cf_ℓ ≥ 0)
+
+
+def test_load_sharing_validation():
+    np.testing.assert_allclose(load_sharing(4), [0.25] * 4)
+    for bad in ([0.5, 0.6], [1.2, -0.2], [], [math.nan, 1.0]):
+        with pytest.raises(ValueError):
+            load_sharing(bad)
+    with pytest.raises(ValueError):
+        load_sharing(0)
+
+
+def test_tau_keeps_start_and_goal_outside_every_barrier(room_map):
+    """τ < r̄², τ < r̄_d (Prop. 1) and τ < r̄_s: β' vanishes at the start and at the goal."""
+    start = np.array([4.45, 6.0])  # 0.05 m from the pillar
+    task = make_task(room_map, start=start)
+    b = room_map.hole_points
+    r_s = r_bar_d(room_map(start), b)
+    assert task.nf.tau <= TAU_FRACTION * r_s * (1 + 1e-12)
+    assert task.nf.tau < task.nf.r_bar**2 and task.nf.tau < task.nf.r_bar_d
+    for x in (start, GOAL):
+        _, grad, _ = task.nf.evaluate(room_map(x))
+        np.testing.assert_allclose(grad, 2 * task.nf.k1 * (room_map(x) - task.nf.goal), atol=1e-15)
+
+
+@pytest.mark.parametrize("v_max", [math.inf, 0.5])
+def test_vdot_d_is_the_time_derivative_along_the_motion(room_map, v_max):
+    """v̇_d from the law equals d/dt v_d(x(t)) along x(t) = x + t ẋ (central difference, O(h²))."""
+    task = make_task(room_map, v_max=v_max)
+    rng = np.random.default_rng(0)
+    pts = rng.uniform((0.5, 0.5), (19.5, 11.5), size=(200, 2))
+    pts = [p for p in pts if ROOM.buffer(-0.5).contains(Point(p))][:30]
+    for x in pts:
+        xdot = rng.normal(size=2)
+        ev = task.evaluate(x, xdot, 1.0, 0.0)
+        h = 1e-5
+        vp = task.evaluate(x + h * xdot, xdot, 1.0, 0.0).v_d
+        vm = task.evaluate(x - h * xdot, xdot, 1.0, 0.0).v_d
+        fd = (vp - vm) / (2 * h)
+        np.testing.assert_allclose(ev.vdot_d, fd, rtol=1e-4, atol=1e-7 * (1 + np.abs(fd).max()))
+        assert np.linalg.norm(ev.v_d) < v_max
+
+
+def test_task_is_shared_not_copied_by_deepcopy(room_map):
+    import copy
+
+    task = make_task(room_map)
+    assert copy.deepcopy(task) is task
+
+
+def _closed_loop(task, mass, fr_scale, t_end):
+    """Numpy simulation of m ẍ + f = u (paper friction), law + adaptation (eq. adaptation law)."""
+
+    def rhs(_, y):
+        x, v, m_hat, a_hat = y[:2], y[2:4], y[4], y[5]
+        ev = task.evaluate(x, v, m_hat, a_hat)
+        acc = (ev.u - friction("paper", fr_scale, 0.5, x, v)) / mass
+        return np.concatenate([v, acc, [ev.m_hat_dot, ev.alpha_hat_dot]])
+
+    y0 = np.concatenate([START, [0, 0], [task.gains.m_hat0, task.gains.alpha_hat0]])
+    return solve_ivp(rhs, (0, t_end), y0, method="LSODA", rtol=1e-8, atol=1e-9, max_step=0.5)
+
+
+@pytest.mark.parametrize("mass,fr_scale", [(1.0, 1.25), (3.0, 0.3), (0.5, 2.0)])
+def test_closed_loop_converges_safely_in_a_room(room_map, mass, fr_scale):
+    """The law drives the true plant (unknown m, f) to x_d without leaving the free space; estimates bounded.
+
+    With k1 = 1, χ converges like exp(−2 k1 η t) with tracking ratio η ≥ k_v/(k_v + α) = 1/(1 + 2 scale);
+    180 s leaves ample margin over ln(‖χ0 − χd‖ / 1e-3) / (2 η) ≈ 15-20 s.
+    """
+    task = make_task(room_map, gains=AdaptiveGains(k_phi=1.0, k_v=1.0, k_m=0.01, k_alpha=0.01))
+    sol = _closed_loop(task, mass, fr_scale, 180.0)
+    assert sol.success and np.all(np.isfinite(sol.y))
+    xy = sol.y[:2].T
+    assert np.linalg.norm(xy[-1] - GOAL) < 0.05
+    clear = np.array([ROOM.boundary.distance(Point(p)) for p in xy])
+    inside = np.array([ROOM.contains(Point(p)) for p in xy])
+    assert inside.all() and clear.min() > 0.0
+    assert np.all(np.abs(sol.y[4]) < 10) and np.all((sol.y[5] >= 0) & (sol.y[5] < 10))

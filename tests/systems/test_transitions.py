@@ -1,0 +1,279 @@
+"""Guarantee tests for the continuous layer (paper Sec. III-A) on simulated transitions of case study I.
+
+Every simulated transition must: reach the target region (the entity's ball inside it, nearly at rest)
+within the time bound below; keep a positive clearance to every obstacle, wall, other entity and other
+region along the whole trajectory — computed from the simulated states with shapely on the raw scenario
+geometry, never from the controller's map; keep m̂, α̂ bounded; produce no NaN.
+
+Time bound.  With perfect velocity tracking and no saturation, χ̇ = −∇φ = −2k1(χ − χ_d) away from the
+barriers, so ‖χ − χ_d‖ shrinks like e^{−2 k1 t}; the ball is inside the region once ‖χ − χ_d‖ ≤ ρ, the
+distance from χ_d to the image of the circle of centres whose ball touches the region's rim.  The speed
+bound v_max costs at most the time to drive a path twice as long as the straight line at v_max (office
+paths via doors).  Friction slows tracking: in steady state (k_v + 3/2 α̂) e_v = −f with ‖f‖ ≤ α‖ẋ‖, α̂ ≥ 0,
+gives ‖ẋ‖ ≥ η‖v_d‖ with η = k_v / (k_v + α) (α the sum over the bodies of the entity).  Hence
+
+    T = [ln(‖χ_0 − χ_d‖ / ρ) / (2 k1) + 2 ‖x_0 − x_d‖ / v_max] / η.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+import shapely
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+from pydrake.common.value import AbstractValue
+from pydrake.systems.analysis import Simulator
+from shapely.geometry import LineString, Point, box
+
+from mrodrake.control.adaptive import AdaptiveGains, NavigationTask
+from mrodrake.control.freespace import clearances, inside_region
+from mrodrake.control.pointworld import PointWorldMap
+from mrodrake.errors import UserError
+from mrodrake.geometry import polygon
+from mrodrake.scenario import load_scenario
+from mrodrake.systems.controllers import NavigationController, TransportController
+from mrodrake.systems.transition import entity_layout, simulate_transition
+from mrodrake.viz.figures import figure_signals, figure_trajectory
+
+SCEN = Path(__file__).resolve().parents[2] / "scenarios"
+CASE1 = load_scenario(SCEN / "case_study_1.yaml")
+M_HAT_BOUND = 50.0  # |m̂| and α̂ stay far below this (true masses <= 10 kg, α <= 15)
+
+
+# ---------------------------------------------------------------------------------------------- helpers
+def time_bound(r) -> float:
+    """The bound T of the module docstring for a simulated transition ``r``."""
+    s, task = r.scenario, r.task
+    reg = s.regions[r.dst]
+    th = np.linspace(0.0, 2.0 * math.pi, 720, endpoint=False)
+    circle = np.asarray(reg.center) + (reg.radius - r.radius) * np.c_[np.cos(th), np.sin(th)]
+    circle = circle[shapely.contains_xy(r.free.polygon, circle[:, 0], circle[:, 1])]
+    rho = float(np.min(np.linalg.norm(task.pw_map(circle) - task.nf.goal, axis=1)))
+    chi0 = task.pw_map(r.start)
+    bodies = [r.entity] + list(r.team)
+    frictions = {b.name: b.friction for b in [*s.robots, *s.objects]}
+    alpha = sum((2.0 if frictions[b].model == "paper" else 1.0) * r.true_params[b]["scale"] for b in bodies)
+    eta = s.control.k_v / (s.control.k_v + alpha)
+    k1 = task.nf.k1
+    return (math.log(np.linalg.norm(chi0 - task.nf.goal) / rho) / (2 * k1)
+            + 2 * np.linalg.norm(r.start - r.goal) / task.v_max) / eta
+
+
+def min_clearance(r) -> tuple[float, str]:
+    """Smallest clearance of the entity ball over the logged states and the polyline between them."""
+    s = r.scenario
+    avoid = [k for k in range(len(s.regions)) if k not in (r.src, r.dst)]
+    pts = r.positions
+    cl = clearances(s, pts, r.radius, r.others, avoid)
+    worst = min((float(v.min()), k) for k, v in cl.items())
+    path = LineString(pts) if len(pts) > 1 else Point(pts[0])
+    boundary = polygon(s.workspace.boundary)
+    assert boundary.contains(path)
+    seg = [(boundary.exterior.distance(path) - r.radius, "wall (polyline)")]
+    seg += [(polygon(o.polygon).distance(path) - r.radius, o.name + " (polyline)") for o in s.workspace.obstacles]
+    seg += [(Point(d.center).distance(path) - d.radius - r.radius, d.name + " (polyline)") for d in r.others]
+    seg += [(Point(s.regions[k].center).distance(path) - s.regions[k].radius - r.radius, s.regions[k].name + " (polyline)")
+            for k in avoid]
+    return min([worst, *seg])
+
+
+def check_guarantees(r) -> None:
+    log = r.log
+    assert np.all(np.isfinite(log.to_numpy())), "NaN or inf in the log"
+    assert r.reached, f"{r.task.label}: not reached ({r.status}) at t = {r.t_final:.1f} s"
+    bound = time_bound(r)
+    assert r.t_final <= bound, f"{r.task.label}: arrival at {r.t_final:.1f} s > bound {bound:.1f} s"
+    assert inside_region(r.scenario, r.dst, r.positions[-1], r.radius)
+    assert np.hypot(*r.velocities[-1]) <= 0.05 + 1e-12
+    clear, what = min_clearance(r)
+    assert clear > 0.0, f"{r.task.label}: clearance {clear:.4f} m to {what}"
+    assert np.all(np.abs(log["m_hat"]) < M_HAT_BOUND)
+    assert np.all((log["alpha_hat"] >= 0.0) & (log["alpha_hat"] < M_HAT_BOUND))
+    assert np.all(np.diff(log["alpha_hat"]) >= -1e-12)  # dα̂/dt = k_α‖e_v‖² ≥ 0
+
+
+# ---------------------------------------------------------------------------------------------- transitions
+@pytest.mark.parametrize("robot,src,dst", [("r1", "p1", "p3"), ("r3", "p4", "p2")])
+def test_robot_navigation(robot, src, dst):
+    r = simulate_transition(CASE1, "navigate", robot, src_region=src, dst_region=dst, t_max=5000.0)
+    check_guarantees(r)
+    assert {d.name for d in r.others} == {"r1", "r2", "r3", "o1", "o2"} - {robot}
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("src,dst", list(itertools.permutations(range(4), 2)))
+def test_robot_navigation_every_ordered_pair(src, dst):
+    r = simulate_transition(CASE1, "navigate", "r1", src_region=src, dst_region=dst, t_max=5000.0)
+    check_guarantees(r)
+
+
+def test_transport_by_two_robots(tmp_path):
+    r = simulate_transition(CASE1, "transport", "o1", team=["r1", "r2"], src_region="p2", dst_region="p4",
+                            t_max=8000.0)
+    check_guarantees(r)
+    assert {d.name for d in r.others} == {"r3", "o2"}
+    u = r.inputs
+    np.testing.assert_allclose(r.member_input("r1") + r.member_input("r2"), u, atol=1e-12)
+    for name in r.team:  # the robots follow rigidly at their grasp offsets
+        off = r.member_positions(name) - r.positions
+        np.testing.assert_allclose(np.linalg.norm(off, axis=1), 0.2 + 0.75 + CASE1.layout.grasp_gap)
+    fig4 = figure_trajectory(r, tmp_path / "fig4.png")  # paper Figs. 4 and 5 for this transport
+    fig5 = figure_signals(r, tmp_path / "fig5.png", member="r2")
+    assert len(fig4.axes) == 2 and len(fig5.axes) == 2
+    assert (tmp_path / "fig4.png").stat().st_size > 10_000 and (tmp_path / "fig5.png").stat().st_size > 10_000
+    np.testing.assert_allclose(fig4.axes[1].lines[1].get_xydata(), r.point_world())
+
+
+def test_transport_by_three_robots():
+    r = simulate_transition(CASE1, "transport", "o2", team=["r1", "r2", "r3"], src_region="p1", dst_region="p3",
+                            t_max=8000.0, cf=[0.5, 0.3, 0.2])
+    check_guarantees(r)
+    np.testing.assert_allclose(r.member_input("r2"), 0.3 * r.inputs)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("obj,team,src,dst", [("o1", ["r1", "r3"], "p2", "p1"), ("o2", ["r2", "r3"], "p1", "p4"),
+                                               ("o1", ["r2", "r3"], "p2", "p3"), ("o2", ["r3", "r1", "r2"], "p1", "p2")])
+def test_more_transports(obj, team, src, dst):
+    check_guarantees(simulate_transition(CASE1, "transport", obj, team=team, src_region=src, dst_region=dst,
+                                         t_max=8000.0))
+
+
+def _random_spot(region, radius, others, rng):
+    """A start centre drawn uniformly among those whose ball is in the region and clear of the others."""
+    c, room = np.asarray(region.center), region.radius - radius - 0.05
+    for _ in range(2000):
+        p = c + rng.uniform(-room, room, size=2)
+        if np.hypot(*(p - c)) <= room and all(np.hypot(*(p - d.center)) > d.radius + radius + 0.05 for d in others):
+            return p
+    return None
+
+
+transitions = st.sampled_from([("navigate", "r1", ()), ("navigate", "r2", ()),
+                               ("transport", "o1", ("r1", "r2")), ("transport", "o2", ("r1", "r2", "r3"))])
+
+
+def _random_transition(case, mass_factors, scale_factors, seed, pair_index):
+    kind, entity, team = case
+    pairs = list(itertools.permutations(range(4), 2))
+    src, dst = pairs[pair_index % len(pairs)]
+    bodies = [entity, *team]
+    nominal = {b.name: b for b in [*CASE1.robots, *CASE1.objects]}
+    over = {b: {"mass": nominal[b].mass * mf, "scale": nominal[b].friction.scale * sf}
+            for b, mf, sf in zip(bodies, mass_factors, scale_factors)}
+    teams = {entity: list(team)} if team else {}
+    spot = f"{entity}@goal"
+    radius = 0.75 if kind == "navigate" else 1.8
+    placed = entity_layout(CASE1, {entity: src}, teams, seed=seed, reserve={dst: [(spot, radius)]})
+    others = [d for n, d in placed.items() if n not in (entity, spot)]
+    start = _random_spot(CASE1.regions[src], radius, others, np.random.default_rng(seed))
+    if start is None:
+        return None
+    return simulate_transition(CASE1, kind, entity, team=list(team), src_region=src, dst_region=dst, others=others,
+                               start=start, goal=placed[spot].center, true_params_override=over, t_max=20000.0,
+                               seed=seed)
+
+
+def _property(case, mass_factors, scale_factors, seed, pair_index):
+    try:
+        r = _random_transition(case, mass_factors, scale_factors, seed, pair_index)
+    except UserError as e:  # P_s found no room for this combination: nothing to simulate
+        assert "do not fit" in str(e) or "no room" in str(e)
+        return
+    if r is not None:
+        check_guarantees(r)
+
+
+factors = st.lists(st.floats(0.5, 3.0), min_size=4, max_size=4)
+scales = st.lists(st.floats(0.2, 1.6), min_size=4, max_size=4)
+
+
+@settings(max_examples=2, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(transitions, factors, scales, st.integers(0, 10_000), st.integers(0, 11))
+def test_random_true_parameters_and_initial_spots(case, mass_factors, scale_factors, seed, pair_index):
+    """True masses 0.5x-3x the nominal, friction scales 0.2x-1.6x, random start spots (a quick sample)."""
+    _property(case, mass_factors, scale_factors, seed, pair_index)
+
+
+@pytest.mark.slow
+@settings(max_examples=30, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(transitions, factors, scales, st.integers(0, 10_000), st.integers(0, 11))
+def test_random_true_parameters_and_initial_spots_many(case, mass_factors, scale_factors, seed, pair_index):
+    _property(case, mass_factors, scale_factors, seed, pair_index)
+
+
+# ---------------------------------------------------------------------------------------------- controllers
+ROOM = box(0, 0, 20, 12).difference(Point(6, 6).buffer(1.5))
+
+
+@pytest.fixture(scope="module")
+def room_task():
+    pw = PointWorldMap.build(ROOM)
+    return NavigationTask.build(pw, [18.0, 10.0], AdaptiveGains(m_hat0=0.7, alpha_hat0=0.1), k1=1.0, k2=1.0,
+                                r_bar_cap=0.1, tau_cap=0.01, start=[2.0, 2.0])
+
+
+def test_navigation_controller_outputs_the_law(room_task):
+    ctrl = NavigationController(room_task)
+    ctx = ctrl.CreateDefaultContext()
+    s = np.array([3.0, 4.0, 0.2, -0.1])
+    ctrl.state_port.FixValue(ctx, s)
+    np.testing.assert_allclose(ctrl.estimates_port.Eval(ctx), [0.7, 0.1])
+    ev = room_task.evaluate(s[:2], s[2:], 0.7, 0.1)
+    np.testing.assert_allclose(ctrl.u_port.Eval(ctx), ev.u)
+    np.testing.assert_allclose(ctrl.EvalTimeDerivatives(ctx).CopyToVector(), [ev.m_hat_dot, ev.alpha_hat_dot])
+    ctrl.task_port.FixValue(ctx, AbstractValue.Make(None))  # disabled: zero input, frozen estimates
+    np.testing.assert_allclose(ctrl.u_port.Eval(ctx), 0.0)
+    np.testing.assert_allclose(ctrl.EvalTimeDerivatives(ctx).CopyToVector(), 0.0)
+
+
+def test_controller_dependencies_allow_supervisor_routing(room_task):
+    """u depends on the state and task inputs; the estimates output on neither (no algebraic loops)."""
+    ctrl = TransportController(["a", "b"], room_task.__class__(room_task.pw_map, room_task.nf, room_task.goal,
+                                                              room_task.gains, np.array([0.25, 0.75])))
+    st_i, task_i = ctrl.state_port.get_index(), ctrl.task_port.get_index()
+    assert ctrl.HasDirectFeedthrough(st_i, ctrl.u_port.get_index())
+    assert ctrl.HasDirectFeedthrough(task_i, ctrl.member_u_ports[0].get_index())
+    assert not ctrl.HasDirectFeedthrough(st_i, ctrl.estimates_port.get_index())
+    assert not ctrl.HasDirectFeedthrough(task_i, ctrl.estimates_port.get_index())
+    ctx = ctrl.CreateDefaultContext()
+    ctrl.state_port.FixValue(ctx, [3.0, 4.0, 0.0, 0.0])
+    u = ctrl.u_port.Eval(ctx)
+    np.testing.assert_allclose(ctrl.GetOutputPort("u_a").Eval(ctx), 0.25 * u)
+    np.testing.assert_allclose(ctrl.GetOutputPort("u_b").Eval(ctx), 0.75 * u)
+    with pytest.raises(ValueError):
+        TransportController(["a", "b", "c"], ctrl._task)
+
+
+def test_new_task_resets_the_estimates(room_task):
+    """A supervisor swapping tasks: estimates restart from the new task's m̂(0), α̂(0) at the next step."""
+    ctrl = NavigationController(room_task)
+    ctx = ctrl.CreateDefaultContext()
+    ctrl.state_port.FixValue(ctx, [3.0, 4.0, 1.0, 1.0])
+    ctrl.task_port.FixValue(ctx, AbstractValue.Make(room_task))
+    sim = Simulator(ctrl, ctx)
+    sim.AdvanceTo(1.0)
+    moved = ctx.get_continuous_state_vector().CopyToVector()
+    assert moved[1] > 0.1  # α̂ grew (‖e_v‖ > 0)
+    other = NavigationTask(room_task.pw_map, room_task.nf, room_task.goal, AdaptiveGains(m_hat0=5.0, alpha_hat0=2.0),
+                           room_task.cf)
+    ctrl.task_port.FixValue(ctx, AbstractValue.Make(other))
+    sim.AdvanceTo(1.0 + 1e-9)
+    np.testing.assert_allclose(ctx.get_continuous_state_vector().CopyToVector(), [5.0, 2.0], atol=1e-6)
+
+
+def test_bad_requests_are_user_errors():
+    with pytest.raises(UserError, match="not a robot"):
+        simulate_transition(CASE1, "navigate", "o1", src_region="p1", dst_region="p2")
+    with pytest.raises(UserError, match="team"):
+        simulate_transition(CASE1, "transport", "o1", team=[], src_region="p2", dst_region="p1")
+    with pytest.raises(UserError, match="same as the source"):
+        simulate_transition(CASE1, "navigate", "r1", src_region="p1", dst_region="p1")
+    with pytest.raises(UserError, match="true_params_override.r9"):
+        simulate_transition(CASE1, "navigate", "r1", src_region="p1", dst_region="p2", t_max=0.1,
+                            true_params_override={"r9": {"mass": 1.0}})
