@@ -26,6 +26,10 @@ Dσ(v) = q^{-1/2} (I − v vᵀ / (v_max² q)), q = 1 + ‖v‖²/v_max².  σ r
 c(x) = q^{-1/2} ∈ (0, 1], so χ̇ = J_H v_d = −c ∇φ still descends φ, and in the paper's Lyapunov argument
 the term k_φ ∇φᵀ J_H v_d becomes −k_φ c ‖∇φ‖² ≤ 0 while the cross terms are cancelled by −k_φ J_Hᵀ∇φ as
 before.  ``v_max = inf`` recovers the paper's law exactly.
+
+Barrier regions (our generalisation, :class:`LocalBarrierNavigationFunction`): one region of influence τ_ℓ
+per point obstacle and τ_0 for the unit circle, each chosen by Proposition 1's rule from that barrier's own
+neighbourhood, instead of one τ for the whole map.  The start is kept outside every region as well.
 """
 
 from __future__ import annotations
@@ -36,7 +40,7 @@ from typing import NamedTuple, Sequence
 
 import numpy as np
 
-from mrodrake.control.navfunc import TAU_FRACTION, NavigationFunction, desired_velocity, r_bar_d
+from mrodrake.control.navfunc import TAU_FRACTION, beta, desired_velocity
 
 #: Default speed bound v_max (m/s) of the desired velocity (module docstring).
 V_MAX = 2.0
@@ -99,6 +103,85 @@ def transport_inputs(u: np.ndarray, cf: np.ndarray) -> np.ndarray:
     return np.outer(cf, u)
 
 
+@dataclass(frozen=True)
+class LocalBarrierNavigationFunction:
+    """φ(χ) = k1‖χ − χ_d‖² + k2 Σ_{ℓ∈J̄0} (β_ℓ(d_ℓ(χ)) − 1) with one region of influence τ_ℓ per barrier
+    (β_ℓ(x) = β(x/τ_ℓ), β of eq. (beta_exps)); ℓ = 0 is the unit circle (d_0 = 1 − ‖χ‖²).
+
+    A generalisation of Def. 2nd-order NF with Proposition 1 applied per barrier (our choice, see
+    :func:`local_barriers`): the paper's single τ < r̄² is set by the two closest points b_ℓ of the whole
+    map, which in an office are ~1e-3 apart (rooms are squeezed against the unit circle), giving
+    τ ~ 1e-7 everywhere — thinner than the panel map's own error around holes (1e-4 to 3e-3) and along the
+    circle (1e-4 median), so entities slipped through walls and into obstacles in the property tests.
+    Per-barrier τ_ℓ keep the properties the proof uses: each β_ℓ satisfies properties 1 and 4, the
+    barrier regions are pairwise disjoint and exclude χ_d (property 3, Prop. 1), and φ(χ_d) = 0.
+    Same interface as :class:`mrodrake.control.navfunc.NavigationFunction` (``evaluate``).
+    """
+
+    goal: np.ndarray
+    obstacles: np.ndarray
+    taus: np.ndarray  # (L + 1,): τ_0 (unit circle), τ_1..τ_L (holes)
+    k1: float = 1.0
+    k2: float = 1.0
+
+    @property
+    def tau(self) -> float:
+        """The smallest region of influence."""
+        return float(self.taus.min())
+
+    def evaluate(self, chi) -> tuple[float, np.ndarray, np.ndarray]:
+        """(φ, ∇φ, ∇²φ) at χ (shape (2,))."""
+        chi = np.asarray(chi, dtype=float)
+        e = chi - self.goal
+        diff = chi - self.obstacles
+        d = np.concatenate([[1.0 - chi @ chi], np.einsum("ij,ij->i", diff, diff)])
+        grad_d = np.vstack([-2.0 * chi, 2.0 * diff])
+        hess_d = np.concatenate([[-2.0], np.full(len(diff), 2.0)])
+        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+            b, db, ddb = beta(d, self.taus)
+        value = self.k1 * (e @ e) + self.k2 * float(np.sum(b - 1.0))
+        grad = 2.0 * self.k1 * e + self.k2 * (db @ grad_d)
+        hess = (2.0 * self.k1 + self.k2 * float(db @ hess_d)) * np.eye(2)
+        hess += self.k2 * (grad_d.T * ddb) @ grad_d
+        return value, grad, hess
+
+
+def local_barriers(goal, obstacles, starts=(), *, rho_cap: float, tau_cap: float,
+                   fraction: float = TAU_FRACTION) -> np.ndarray:
+    """Regions of influence (τ_0, τ_1..τ_L) for :class:`LocalBarrierNavigationFunction` (Prop. 1 per barrier).
+
+    Hole ℓ gets radius ρ_ℓ = √τ_ℓ = min(√f · g_ℓ, √f ‖χ_d − b_ℓ‖, √f ‖χ_s − b_ℓ‖, ρ_cap, √τ_cap) with
+    g_ℓ = min(½ min_m ‖b_ℓ − b_m‖, ½ (1 − ‖b_ℓ‖)) (f = ``fraction``), so barrier disks are pairwise disjoint
+    and leave room to the circle; the circle band {1 − ‖χ‖² < τ_0} gets
+    τ_0 = min(f min_ℓ (1 − (‖b_ℓ‖ + ρ_ℓ)²), f (1 − ‖χ_d‖²), f (1 − ‖χ_s‖²), τ_cap), disjoint from every
+    hole barrier.  χ_d and the starts χ_s lie outside every region (β' = β'' = 0 there).
+    """
+    g = np.asarray(goal, dtype=float).reshape(2)
+    b = np.asarray(obstacles, dtype=float).reshape(-1, 2)
+    pts = [g] + [np.asarray(p, dtype=float).reshape(2) for p in starts]
+    for p in pts:
+        if not p @ p < 1.0 or (len(b) and np.min(np.linalg.norm(b - p, axis=1)) <= 0.0):
+            raise ValueError(f"point {p.tolist()} is not inside the point world")
+    sf = math.sqrt(fraction)
+    nb = np.linalg.norm(b, axis=1)
+    rho = np.full(len(b), min(rho_cap, math.sqrt(tau_cap)))
+    if len(b):
+        gap = 0.5 * (1.0 - nb)
+        if len(b) > 1:
+            dist = np.linalg.norm(b[:, None, :] - b[None, :, :], axis=-1)
+            np.fill_diagonal(dist, np.inf)
+            gap = np.minimum(gap, 0.5 * dist.min(axis=1))
+        rho = np.minimum(rho, sf * gap)
+        for p in pts:
+            rho = np.minimum(rho, sf * np.linalg.norm(b - p, axis=1))
+    tau0 = tau_cap
+    if len(b):
+        tau0 = min(tau0, fraction * float(np.min(1.0 - (nb + rho) ** 2)))
+    for p in pts:
+        tau0 = min(tau0, fraction * (1.0 - float(p @ p)))
+    return np.concatenate([[tau0], rho * rho])
+
+
 class ControlEval(NamedTuple):
     """Everything one evaluation of the law produces (per state and estimates)."""
 
@@ -118,7 +201,7 @@ class NavigationTask:
     :meth:`evaluate` is the hot path."""
 
     pw_map: object
-    nf: NavigationFunction
+    nf: LocalBarrierNavigationFunction
     goal: np.ndarray
     gains: AdaptiveGains
     cf: np.ndarray
@@ -129,23 +212,21 @@ class NavigationTask:
     def build(cls, pw_map, goal, gains: AdaptiveGains, *, k1: float, k2: float, r_bar_cap: float,
               tau_cap: float, cf: Sequence[float] | int = 1, start=None, v_max: float = V_MAX,
               label: str = "") -> "NavigationTask":
-        """Task for workspace goal x_d on map H: φ from :meth:`NavigationFunction.for_map`.
+        """Task for workspace goal x_d on map H: χ_d = H(x_d), b_ℓ the map's hole points, φ with per-barrier
+        regions of influence (:func:`local_barriers`, caps ρ ≤ r_bar_cap, τ ≤ tau_cap).
 
-        With ``start`` given, τ is also kept below TAU_FRACTION × r̄_s, r̄_s = min(1 − ‖χ_s‖², min_ℓ d_ℓ(χ_s))
-        (χ_s = H(start), the analogue of r̄_d for the start): the entity then starts outside every barrier's
-        region of influence.  Entities packed by P_s sit a few centimetres apart, and a start deep inside a
-        barrier region makes ∇φ, hence v_d and u, astronomically large at t = 0.
+        With ``start`` given, χ_s = H(start) is also kept outside every barrier region: entities packed by
+        P_s sit ~10 cm apart, and a start inside a barrier region makes ∇φ, hence v_d and u, astronomically
+        large at t = 0.
         """
         goal = np.asarray(goal, dtype=float).reshape(2)
-        if start is not None:
-            chi_s = pw_map(np.asarray(start, dtype=float).reshape(2))
-            r_s = r_bar_d(chi_s, pw_map.hole_points)
-            if not r_s > 0.0:
-                raise ValueError(f"start {np.asarray(start).tolist()} is not inside the point world")
-            tau_cap = min(tau_cap, TAU_FRACTION * r_s)
-        nf = NavigationFunction.for_map(pw_map, goal, k1=k1, k2=k2, r_bar_cap=r_bar_cap, tau_cap=tau_cap)
         if not v_max > 0.0:
             raise ValueError(f"v_max must be > 0, got {v_max!r}")
+        chi_d = pw_map(goal)
+        starts = [] if start is None else [pw_map(np.asarray(start, dtype=float).reshape(2))]
+        taus = local_barriers(chi_d, pw_map.hole_points, starts, rho_cap=r_bar_cap, tau_cap=tau_cap)
+        nf = LocalBarrierNavigationFunction(chi_d, np.asarray(pw_map.hole_points, dtype=float).reshape(-1, 2),
+                                            taus, float(k1), float(k2))
         return cls(pw_map, nf, goal, gains, load_sharing(cf), float(v_max), label)
 
     def evaluate(self, x: np.ndarray, xdot: np.ndarray, m_hat: float, alpha_hat: float) -> ControlEval:

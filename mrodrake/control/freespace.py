@@ -11,6 +11,14 @@ radius r / cos(π / (4 q)) (q segments per quarter circle), so that the polygona
 exact ones and F never over-approximates the true free space.  F is further eroded by ``safety`` (mitre
 joins): this opens pinch points where an enlarged obstacle touches the boundary or another obstacle, so
 that touching holes merge, and keeps every point of F strictly collision-free.
+
+Numerical margin (our addition).  The guarantee assumes an exact map H.  The panel solution of H is off
+by ~1e-4 (median) to ~1e-2 (corners) on the outer boundary, while the barrier of φ acts only where
+1 − ‖χ‖² < τ ~ 1e-6: an entity cutting a door jamb can cross ∂F by a few decimetres (0.28 m seen in the
+property tests).  Walls, workspace obstacles and the other regions are therefore enlarged by r + margin
+(default 0.5 m).  The other entities are enlarged by r only: they are packed ``layout.spacing`` apart
+(0.1 m), so a margin would put the start inside their holes, and their small round holes are resolved
+finely by the map.
 """
 
 from __future__ import annotations
@@ -31,6 +39,8 @@ from mrodrake.scenario import Scenario
 
 #: Default erosion of F beyond the entity radius (m): opens pinch points, keeps clearance strictly positive.
 DEFAULT_SAFETY = 1e-3
+#: Default extra clearance (m) to walls, workspace obstacles and other regions (module docstring).
+DEFAULT_MARGIN = 0.5
 _CHORD = 1.0 / math.cos(math.pi / (4 * DISK_QUAD_SEGS))
 
 
@@ -84,12 +94,14 @@ def entity_free_space(
     dst_region: int | str,
     others: Sequence[Disk] = (),
     safety: float = DEFAULT_SAFETY,
+    margin: float = DEFAULT_MARGIN,
 ) -> EntityFreeSpace:
     """F = (W_f \\ O) ⊖ r for an entity of ``radius`` moving from ``start`` (in ``src_region``) to
     ``goal`` (in ``dst_region``), the ``others`` being static; the component of F containing ``start``.
 
-    Raises UserError when the start is not in F or the goal is not in the same component ("goal
-    unreachable").
+    Walls, workspace obstacles and the other regions are enlarged by r + ``margin`` (see the module
+    docstring), the other entities by r.  Raises UserError when the start is not in F or the goal is not
+    in the same component ("goal unreachable").
     """
     r = float(radius)
     if not (math.isfinite(r) and r > 0.0):
@@ -97,16 +109,20 @@ def entity_free_space(
     src, dst = region_index(scenario, src_region), region_index(scenario, dst_region)
     start = np.asarray(start, dtype=float).reshape(2)
     goal = np.asarray(goal, dtype=float).reshape(2)
-    grow = r * _CHORD
+    if not (math.isfinite(margin) and margin >= 0.0):
+        raise UserError(f"margin: must be a finite number >= 0, got {margin!r}")
+    grow, grow_static = r * _CHORD, (r + float(margin)) * _CHORD
     boundary = polygon(scenario.workspace.boundary)
     obstacles: list[tuple[str, Polygon]] = [(o.name, polygon(o.polygon)) for o in scenario.workspace.obstacles]
-    for d in others:
-        obstacles.append((d.name, disk(d.center, d.radius)))
     for k, reg in enumerate(scenario.regions):
         if k not in (src, dst):
             obstacles.append((reg.name, disk(reg.center, reg.radius)))
-    enlarged = [g.buffer(grow, quad_segs=DISK_QUAD_SEGS) for _, g in obstacles]
-    inner = boundary.buffer(-grow, quad_segs=DISK_QUAD_SEGS)
+    n_static = len(obstacles)
+    for d in others:
+        obstacles.append((d.name, disk(d.center, d.radius)))
+    enlarged = [g.buffer(grow_static if i < n_static else grow, quad_segs=DISK_QUAD_SEGS)
+                for i, (_, g) in enumerate(obstacles)]
+    inner = boundary.buffer(-grow_static, quad_segs=DISK_QUAD_SEGS)
     free = inner.difference(unary_union(enlarged)) if enlarged else inner
     if safety > 0.0:
         free = free.buffer(-float(safety), join_style="mitre")
@@ -120,7 +136,8 @@ def entity_free_space(
         inside = any(p.contains(p_goal) for p in parts)
         why = "separated from the start by obstacles" if inside else "not in the free space"
         raise UserError(f"goal unreachable: ({goal[0]:.3f}, {goal[1]:.3f}) in region "
-                        f"'{scenario.regions[dst].name}' is {why} for an entity of radius {r:g}")
+                        f"'{scenario.regions[dst].name}' is {why} for an entity of radius {r:g} "
+                        f"(+ {margin:g} m margin to walls, obstacles and other regions)")
     comp = shapely.geometry.polygon.orient(comp, 1.0)
     hole_names = []
     for ring in comp.interiors:

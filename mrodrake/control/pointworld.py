@@ -350,7 +350,7 @@ class PointWorldMap:
         hole_refinement: float = 2.0,
         grading: float = 0.4,
         curvature_fraction: float = 0.5,
-        blob_tolerance: float = 0.05,
+        blob_tolerance: float = 0.08,
         max_refinements: int = 3,
     ) -> "PointWorldMap":
         """Discretise the boundary of ``free_space`` (a shapely Polygon with holes) and solve for H.
@@ -546,7 +546,7 @@ class PointWorldMap:
         return self._eval(pts)
 
     # ------------------------------------------------------------------ diagnostics and inverse
-    def _hole_blobs(self, samples_per_panel: int = 2) -> np.ndarray:
+    def _hole_blobs(self, samples_per_panel: int = 4) -> np.ndarray:
         """Per hole ℓ: max |H − b_ℓ| sampled on its panels (the size of the hole's image)."""
         on = self.panel_ring > 0
         frac = (np.arange(samples_per_panel) + 0.5) / samples_per_panel

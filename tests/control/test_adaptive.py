@@ -6,21 +6,23 @@ import math
 
 import numpy as np
 import pytest
-from hypothesis import given
+from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 from scipy.integrate import solve_ivp
 from shapely.geometry import Point, box
 
 from mrodrake.control.adaptive import (
     AdaptiveGains,
+    LocalBarrierNavigationFunction,
     NavigationTask,
     adaptation_rates,
     load_sharing,
+    local_barriers,
     navigation_input,
     saturate_velocity,
     transport_inputs,
 )
-from mrodrake.control.navfunc import TAU_FRACTION, r_bar_d
+from mrodrake.control.navfunc import NavigationFunction
 from mrodrake.control.pointworld import PointWorldMap
 from mrodrake.systems.plants import friction
 
@@ -102,17 +104,62 @@ def test_load_sharing_validation():
         load_sharing(0)
 
 
-def test_tau_keeps_start_and_goal_outside_every_barrier(room_map):
-    """τ < r̄², τ < r̄_d (Prop. 1) and τ < r̄_s: β' vanishes at the start and at the goal."""
+def test_start_and_goal_are_outside_every_barrier(room_map):
+    """τ_ℓ keep χ_s and χ_d out of every region of influence: β' = 0 there, ∇φ is pure attraction."""
     start = np.array([4.45, 6.0])  # 0.05 m from the pillar
     task = make_task(room_map, start=start)
-    b = room_map.hole_points
-    r_s = r_bar_d(room_map(start), b)
-    assert task.nf.tau <= TAU_FRACTION * r_s * (1 + 1e-12)
-    assert task.nf.tau < task.nf.r_bar**2 and task.nf.tau < task.nf.r_bar_d
     for x in (start, GOAL):
-        _, grad, _ = task.nf.evaluate(room_map(x))
-        np.testing.assert_allclose(grad, 2 * task.nf.k1 * (room_map(x) - task.nf.goal), atol=1e-15)
+        chi = room_map(x)
+        _, grad, _ = task.nf.evaluate(chi)
+        np.testing.assert_allclose(grad, 2 * task.nf.k1 * (chi - task.nf.goal), atol=1e-15)
+
+
+points_in_disk = st.tuples(st.floats(0, 0.999), st.floats(0, 2 * math.pi)).map(
+    lambda p: np.array([p[0] * math.cos(p[1]), p[0] * math.sin(p[1])]))
+
+
+@settings(max_examples=200)
+@given(st.lists(points_in_disk, min_size=1, max_size=8), points_in_disk, points_in_disk, st.floats(1e-4, 0.2))
+def test_local_barriers_satisfy_proposition_1_per_barrier(holes, goal, start, cap):
+    """Barrier disks pairwise disjoint and off the circle band; χ_d, χ_s outside all; caps respected."""
+    b = np.array(holes)
+    dist = np.linalg.norm(b[:, None] - b[None], axis=-1)
+    assume(np.all(dist[np.triu_indices(len(b), 1)] > 1e-9))
+    assume(np.min(np.linalg.norm(b - goal, axis=1)) > 1e-9 and np.min(np.linalg.norm(b - start, axis=1)) > 1e-9)
+    taus = local_barriers(goal, b, [start], rho_cap=cap, tau_cap=cap**2)
+    assert np.all(taus > 0) and np.all(taus <= cap**2 * (1 + 1e-12))
+    rho = np.sqrt(taus[1:])
+    for i, j in zip(*np.triu_indices(len(b), 1)):
+        assert rho[i] + rho[j] < dist[i, j]
+    assert np.all(np.linalg.norm(b, axis=1) + rho < math.sqrt(1 - taus[0]))
+    for p in (goal, start):
+        assert 1 - p @ p > taus[0] and np.all(np.sum((b - p) ** 2, axis=1) > taus[1:])
+
+
+def test_local_barrier_phi_reduces_to_the_papers_phi_for_equal_taus():
+    """With all τ_ℓ = τ, φ, ∇φ, ∇²φ equal navfunc's single-τ φ (Def. 2nd-order NF)."""
+    rng = np.random.default_rng(1)
+    b, goal, tau = rng.uniform(-0.5, 0.5, size=(4, 2)), np.array([0.1, 0.2]), 0.01
+    ours = LocalBarrierNavigationFunction(goal, b, np.full(5, tau), 0.3, 2.0)
+    paper = NavigationFunction(goal, b, tau, 0.3, 2.0)
+    for chi in rng.uniform(-0.7, 0.7, size=(50, 2)):
+        for a, c in zip(ours.evaluate(chi), paper.evaluate(chi)):
+            np.testing.assert_allclose(a, c, rtol=1e-12, atol=1e-12)
+
+
+def test_local_barrier_phi_derivatives_match_finite_differences():
+    b, goal = np.array([[0.3, 0.1], [-0.4, 0.2]]), np.array([0.0, -0.5])
+    nf = LocalBarrierNavigationFunction(goal, b, np.array([0.05, 0.02, 0.03]), 0.5, 1.0)
+    h = 1e-6
+    for chi in (np.array([0.35, 0.15]), np.array([-0.3, 0.25]), np.array([0.0, 0.95]), np.array([0.1, 0.1])):
+        v, g, H = nf.evaluate(chi)
+        for k in range(2):
+            e = np.zeros(2)
+            e[k] = h
+            vp, gp, _ = nf.evaluate(chi + e)
+            vm, gm, _ = nf.evaluate(chi - e)
+            assert g[k] == pytest.approx((vp - vm) / (2 * h), rel=1e-5, abs=1e-7)
+            np.testing.assert_allclose(H[:, k], (gp - gm) / (2 * h), rtol=1e-5, atol=1e-5 * (1 + np.abs(H).max()))
 
 
 @pytest.mark.parametrize("v_max", [math.inf, 0.5])
