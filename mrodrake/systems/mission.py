@@ -60,38 +60,29 @@ def _apply_sync(plant, context, state) -> None:
     state.get_mutable_continuous_state().SetFromVector(np.concatenate([cmd.x, cmd.v]))
 
 
-class SyncedRobotPlant(RobotPlant):
+class _SyncedBody:
+    """Mixin for a one-body plant: an abstract ``sync`` input (state reset by version, parking brake)."""
+
+    def __init__(self, *args, **kwargs):
+        super().__init__(*args, **kwargs)
+        _declare_sync(self)
+
+    def _Sync(self, context, state):
+        _apply_sync(self, context, state)
+
+    def DoCalcTimeDerivatives(self, context, derivatives):
+        if self.sync_port.Eval(context).frozen:
+            derivatives.get_mutable_vector().SetZero()
+            return
+        super().DoCalcTimeDerivatives(context, derivatives)
+
+
+class SyncedRobotPlant(_SyncedBody, RobotPlant):
     """RobotPlant with an abstract ``sync`` input (state reset by version, parking brake)."""
 
-    def __init__(self, *args, **kwargs):
-        super().__init__(*args, **kwargs)
-        _declare_sync(self)
 
-    def _Sync(self, context, state):
-        _apply_sync(self, context, state)
-
-    def DoCalcTimeDerivatives(self, context, derivatives):
-        if self.sync_port.Eval(context).frozen:
-            derivatives.get_mutable_vector().SetZero()
-            return
-        super().DoCalcTimeDerivatives(context, derivatives)
-
-
-class SyncedObjectPlant(ObjectPlant):
+class SyncedObjectPlant(_SyncedBody, ObjectPlant):
     """ObjectPlant with an abstract ``sync`` input (state reset by version, parking brake)."""
-
-    def __init__(self, *args, **kwargs):
-        super().__init__(*args, **kwargs)
-        _declare_sync(self)
-
-    def _Sync(self, context, state):
-        _apply_sync(self, context, state)
-
-    def DoCalcTimeDerivatives(self, context, derivatives):
-        if self.sync_port.Eval(context).frozen:
-            derivatives.get_mutable_vector().SetZero()
-            return
-        super().DoCalcTimeDerivatives(context, derivatives)
 
 
 class SyncedCoupledPlant(CoupledPlant):
