@@ -232,7 +232,11 @@ class NavigationTask:
     def evaluate(self, x: np.ndarray, xdot: np.ndarray, m_hat: float, alpha_hat: float) -> ControlEval:
         """The entity's law u and the adaptation rates at state (x, ẋ) and estimates (m̂, α̂)."""
         g = self.gains
-        v_raw, vdot_raw, J, grad = desired_velocity(self.pw_map, self.nf, x, xdot)
+        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+            v_raw, vdot_raw, J, grad = desired_velocity(self.pw_map, self.nf, x, xdot)
+        if not (np.all(np.isfinite(v_raw)) and np.all(np.isfinite(vdot_raw))):
+            raise RuntimeError(f"point-world map degenerate at x = ({x[0]:.4f}, {x[1]:.4f}) (det J_H = "
+                               f"{np.linalg.det(J):.3g}): the entity left the region the map resolves")
         v_d, vdot_d = saturate_velocity(v_raw, vdot_raw, self.v_max)
         e_v = xdot - v_d
         u = navigation_input(J, grad, vdot_d, e_v, m_hat, alpha_hat, g.k_phi, g.k_v)
