@@ -135,7 +135,10 @@ class ControlGains:
     k1, k2: navigation function weights; k_phi: gradient gain (needs k_phi > α/2); k_v: velocity-error
     gain (not given in the paper); k_m, k_alpha: adaptation gains; r_bar, tau: caps for the separation
     constant r̄ and the barrier's region of influence τ (Prop. 1: τ < min(r̄², r̄_d)); m_hat0, alpha_hat0:
-    initial estimates.
+    initial estimates; k1_local, k_v_local: k1 and k_v of the local (identity-map) law that docks at grasp
+    points and backs off inside a region (mrodrake.control.local; not in the paper, whose grasps are
+    abstract).  k_v_local exceeds the friction bound α = 2.5 of the paper's f_i (Section IV), so that the
+    anti-damping part of f_i cannot sustain a limit cycle around the grasp point while α̂ is still small.
     """
 
     k1: PosNum = 0.01
@@ -148,6 +151,8 @@ class ControlGains:
     tau: PosNum = 0.01
     m_hat0: PosNum = 0.5
     alpha_hat0: NonNegNum = 0.0
+    k1_local: PosNum = 0.25
+    k_v_local: PosNum = 4.0
 
 
 @dataclass(frozen=True, config=_CFG)

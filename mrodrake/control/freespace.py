@@ -153,18 +153,22 @@ def goal_point(
     occupants: Sequence[Disk] = (),
     seed: int = 0,
     margin: float | None = None,
+    future: Sequence[float] = (),
 ) -> np.ndarray:
     """Goal x_d of an entity of ``radius`` in ``region`` given the entities already there (P_s, paper
-    Section III-A), keeping ``margin`` (default: the layout spacing) to them and to the region's rim."""
+    Section III-A), keeping ``margin`` (default: the layout spacing) to them and to the region's rim.
+    ``future``: radii of entities that will join it there later; the goal is then taken from a joint
+    placement of all of them, so that it leaves room for them."""
     k = region_index(scenario, region)
     reg = scenario.regions[k]
     c = np.asarray(reg.center, dtype=float)
     gap = scenario.layout.spacing if margin is None else float(margin)
     fc = np.array([np.asarray(d.center, dtype=float) - c for d in occupants]).reshape(-1, 2)
     fr = [float(d.radius) for d in occupants]
-    sol = place(reg.radius, fc, fr, [float(radius)], seed=int(seed), margin=gap)
+    sol = place(reg.radius, fc, fr, [float(radius)] + [float(f) for f in future], seed=int(seed), margin=gap)
     if sol is None:
-        raise UserError(f"region '{reg.name}': no room for an entity of radius {radius:g} next to "
+        later = f" and later ones of radii {', '.join(f'{f:g}' for f in future)}" if len(future) else ""
+        raise UserError(f"region '{reg.name}': no room for an entity of radius {radius:g}{later} next to "
                         f"{', '.join(d.name for d in occupants) or 'nothing'} (P_s found no placement)")
     return c + sol[0]
 

@@ -19,6 +19,7 @@ u_b = u_a − L, η = (x − a)·n, θ = signed angle under which the panel is s
 
 from __future__ import annotations
 
+import itertools
 import math
 import time
 from dataclasses import dataclass
@@ -26,6 +27,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.linalg
 import shapely
+from scipy.linalg import get_lapack_funcs
 from scipy.spatial import cKDTree
 from shapely.geometry import MultiPolygon, Polygon
 from shapely.geometry.polygon import orient
@@ -76,7 +78,10 @@ class _Ring:
         return np.column_stack([-t[:, 1], t[:, 0]])
 
 
-def _prepare_ring(coords: np.ndarray, *, is_exterior: bool, curvature_fraction: float) -> _Ring:
+def _prepare_ring(coords: np.ndarray, *, is_exterior: bool, curvature_fraction: float,
+                  corner_cap: float = math.inf) -> _Ring:
+    """Ring data; on the outer ring, panels at convex corners of the free space (sharp left turns) are capped
+    at ``corner_cap`` (H degenerates there and its boundary error peaks on the panels next to them)."""
     pts = np.asarray(coords, dtype=float)[:-1]
     scale = float(np.max(np.ptp(pts, axis=0))) if len(pts) else 0.0
     keep = np.linalg.norm(pts - np.roll(pts, 1, axis=0), axis=1) > 1e-12 * max(scale, 1.0)
@@ -103,12 +108,17 @@ def _prepare_ring(coords: np.ndarray, *, is_exterior: bool, curvature_fraction: 
     breaks = cum[:-1][sharp]
     gentle = (~sharp) & (np.abs(turn) > _GENTLE_ANGLE)
     radius = 0.5 * (lengths + np.roll(lengths, 1)) / np.maximum(np.abs(turn), 1e-300)
+    caps = curvature_fraction * radius
+    if is_exterior and math.isfinite(corner_cap):
+        convex = sharp & (turn > 0.0)
+        caps[convex] = corner_cap
+        gentle |= convex
     return _Ring(
         xy=closed,
         cum=cum,
         breaks=breaks,
         curv_s=cum[:-1][gentle],
-        curv_cap=curvature_fraction * radius[gentle],
+        curv_cap=caps[gentle],
     )
 
 
@@ -122,45 +132,89 @@ def _cone_envelope(s: np.ndarray, h: np.ndarray, perimeter: float, grading: floa
     return np.minimum(fwd, bwd)[n : 2 * n]
 
 
-def _local_width(xy, nrm, ring_id, s, perims, radii, k_nearest=64):
+def _pair_widths(i, j, geom):
+    """2ρ that sample j imposes on the ball tangent at sample i (inf if j does not constrain it)."""
+    x, y, nx, ny, s, ring_id, perims = geom
+    dx = x[j] - x[i]
+    dy = y[j] - y[i]
+    dn = dx * nx[i] + dy * ny[i]
+    dd = dx * dx + dy * dy
+    ds = np.abs(s[j] - s[i])
+    ri = ring_id[i]
+    ds = np.minimum(ds, perims[ri] - ds)
+    ok = (dn > 0.0) & (dx * nx[j] + dy * ny[j] < 0.0)  # j in front of i, j's free side faces i
+    ok &= (ring_id[j] != ri) | (ds * ds > (_LOCAL_ARC_RATIO**2) * dd)  # not a neighbour along the boundary
+    return np.where(ok, dd / np.where(ok, dn, 1.0), np.inf)
+
+
+def _ball_min(tree, rows, width, cols, geom):
+    """Per row i: min of ``_pair_widths`` over the samples cols[tree index] inside the ball of diameter
+    width[i] tangent at sample i (exactly the samples that give 2ρ < width[i])."""
+    x, y, nx, ny = geom[:4]
+    half = 0.5 * width[rows]
+    centres = np.column_stack([x[rows] + half * nx[rows], y[rows] + half * ny[rows]])
+    lists = tree.query_ball_point(centres, half, return_sorted=False)
+    counts = np.fromiter(map(len, lists), dtype=np.intp, count=len(lists))
+    out = np.full(len(lists), np.inf)
+    filled = counts > 0
+    if np.any(filled):
+        j = cols[np.fromiter(itertools.chain.from_iterable(lists), dtype=np.intp, count=int(counts.sum()))]
+        val = _pair_widths(np.repeat(rows, counts), j, geom)
+        out[filled] = np.minimum.reduceat(val, np.cumsum(counts)[filled] - counts[filled])
+    return out
+
+
+def _local_width(xy, nrm, ring_id, s, perims, radii, known=None):
     """Local width 2ρ of the free space at each boundary sample.
 
     ρ is the radius of the largest ball tangent at the sample (free side) that contains no other sample
     facing it, ignoring samples that are neighbours along the boundary (arc distance ≤ 2.5 × straight
-    distance, so corners and the sample's own curve do not count).  Only the ``k_nearest`` samples within
-    ``radii`` are examined; where none constrains the ball the width is reported as ``radii``.
+    distance, so corners and the sample's own curve do not count); at most ``radii``.  A sample q gives
+    2ρ = |q − p|² / ((q − p)·n) < w exactly when it lies inside the ball of diameter w tangent at p, so one
+    ball query per sample (w = radii) finds every sample that constrains it, on its own ring or another.
+
+    ``known`` = (index, width, radii) of samples whose widths were computed before, among all samples
+    but the others (new ones): those are updated with the new samples only, which is exact unless a
+    sample was unconstrained and its radius grew.
     """
     n = len(xy)
-    k = min(k_nearest, n)
-    dist, j = cKDTree(xy).query(xy, k=k, distance_upper_bound=float(np.max(radii)))
-    valid = dist <= radii[:, None]
-    j = np.where(valid, j, 0)
-    d = xy[j] - xy[:, None, :]
-    dd = d[..., 0] * d[..., 0] + d[..., 1] * d[..., 1]
-    dn = d[..., 0] * nrm[:, None, 0] + d[..., 1] * nrm[:, None, 1]
-    ds = np.abs(s[j] - s[:, None])
-    ds = np.minimum(ds, perims[ring_id][:, None] - ds)
-    local = (ring_id[j] == ring_id[:, None]) & (ds * ds <= (_LOCAL_ARC_RATIO**2) * dd)
-    facing = (d[..., 0] * nrm[j][..., 0] + d[..., 1] * nrm[j][..., 1]) < 0.0  # q's free side faces p
-    ok = valid & (dn > 0.0) & facing & ~local
-    val = np.where(ok, dd / np.where(ok, dn, 1.0), np.inf)  # 2ρ for this pair
-    return np.minimum(np.asarray(radii, dtype=float), val.min(axis=1))
+    geom = (xy[:, 0].copy(), xy[:, 1].copy(), nrm[:, 0].copy(), nrm[:, 1].copy(), s, ring_id, perims)
+    width = np.array(radii, dtype=float, copy=True)
+    full = np.arange(n)
+    if known is not None:
+        idx, w_old, r_old = known
+        settled = (w_old < r_old) | (radii[idx] <= r_old)
+        keep = idx[settled]
+        width[keep] = np.minimum(w_old[settled], radii[keep])
+        is_new = np.ones(n, dtype=bool)
+        is_new[idx] = False
+        new = np.flatnonzero(is_new)
+        full = np.union1d(new, idx[~settled])
+        if len(new) and len(keep):
+            width[keep] = np.minimum(width[keep], _ball_min(cKDTree(xy[new]), keep, width, new, geom))
+    if len(full):
+        width[full] = np.minimum(width[full], _ball_min(cKDTree(xy), full, width, np.arange(n), geom))
+    return width
 
 
-def _discretise(rings, *, max_panel, min_panel, fractions, grading):
+def _discretise(rings, *, max_panel, min_panel, fractions, grading, ring_caps):
     """Graded panels along every ring (see ``PointWorldMap.build``); returns ends, ring ids, arc params.
 
     Widths are computed at samples (refined until their spacing is at most half the target length);
-    the target is the arc-length cone envelope of the raw sizes and of the curvature caps.
+    the target is the arc-length cone envelope of the raw sizes and of the curvature caps.  ``ring_caps``
+    bounds every panel of a ring (the gap caps of the holes).
     """
     perims = np.array([ring.perimeter for ring in rings])
     breaks_all = [np.append(ring.breaks, ring.perimeter) for ring in rings]
-    piece_caps = [np.maximum(fr * np.diff(br), min_panel) for fr, br in zip(fractions, breaks_all)]
+    piece_caps = [
+        np.maximum(np.minimum(fr * np.diff(br), cap), min_panel)
+        for fr, br, cap in zip(fractions, breaks_all, ring_caps)
+    ]
     samples = []  # initial samples: the breakpoints and a uniform spacing of max_panel / 2
     for ring in rings:
         count = int(math.ceil(ring.perimeter / (0.5 * max_panel)))
         samples.append(np.union1d(ring.breaks, np.linspace(0.0, ring.perimeter, count + 1)[:-1]))
-    h_prev = None
+    h_prev = prev_s = prev_width = prev_radii = None
     width_cap = max_panel / min(fractions)  # wider places get the maximal panel anyway
     for _ in range(12):
         ring_id = np.concatenate([np.full(len(sp), r) for r, sp in enumerate(samples)])
@@ -172,7 +226,13 @@ def _discretise(rings, *, max_panel, min_panel, fractions, grading):
         else:
             frac_all = np.concatenate([np.full(len(sp), fractions[r]) for r, sp in enumerate(samples)])
             radii = np.minimum(width_cap, 1.5 * np.concatenate(h_prev) / frac_all)
-        width = _local_width(xy, nrm, ring_id, s_all, perims, radii)
+        known = None
+        if h_prev is not None:  # the previous samples are kept: update their widths with the new ones
+            offsets = np.cumsum([0] + [len(sp) for sp in samples[:-1]])
+            idx = np.concatenate([o + np.searchsorted(sp, old) for o, sp, old in zip(offsets, samples, prev_s)])
+            known = (idx, prev_width, prev_radii)
+        width = _local_width(xy, nrm, ring_id, s_all, perims, radii, known)
+        prev_s, prev_width, prev_radii = samples, width, radii
         added = False
         new_samples, h_new, env = [], [], []
         off = 0
@@ -228,6 +288,37 @@ def _discretise(rings, *, max_panel, min_panel, fractions, grading):
     return a_xy, b_xy, np.concatenate(rid), s_a, s_b
 
 
+def _kernel_values(x, y, vx, vy, tx, ty, L):
+    """W of ``_kernel`` alone, with fewer temporaries (the assembly and value-only evaluation)."""
+    dx = x[:, None] - vx
+    dy = y[:, None] - vy
+    r = dx * dx
+    r += dy * dy
+    np.maximum(r, _TINY, out=r)  # at a panel end W is finite (0 · ln 0 = 0)
+    lr = np.log(r, out=r)
+    ang = np.arctan2(dy, dx)
+    theta = ang[:, 1:] - ang[:, :-1]  # angle from x − a to x − b, up to a multiple of 2π
+    wrap = np.rint(theta * (1.0 / _TWO_PI), out=ang[:, :-1])
+    wrap *= _TWO_PI
+    theta -= wrap
+    dxa = dx[:, :-1]
+    dya = dy[:, :-1]
+    W = dya * tx  # η
+    W -= dxa * ty
+    W *= theta
+    W *= 2.0
+    ua = np.multiply(dxa, tx, out=theta)
+    ua += dya * ty
+    lb = lr[:, 1:]
+    dl = lr[:, :-1] - lb
+    dl *= ua
+    W += dl
+    lb = lb - 2.0
+    lb *= L
+    W += lb
+    return W
+
+
 def _kernel(x, y, vx, vy, tx, ty, L, *, derivs: bool):
     """Closed forms for the panel chain at points (x, y) (shape (m,)).
 
@@ -235,6 +326,8 @@ def _kernel(x, y, vx, vy, tx, ty, L, *, derivs: bool):
     (tx, ty)_j and length L_j.  Returns arrays of shape (m, links): W, ln r_a − ln r_b, θ and the Hessian
     coefficients A, B (the last four only if ``derivs``).
     """
+    if not derivs:
+        return _kernel_values(x, y, vx, vy, tx, ty, L), None, None, None, None
     dx = x[:, None] - vx
     dy = y[:, None] - vy
     r = np.maximum(dx * dx + dy * dy, _TINY)  # at a panel end W is finite (0 · ln 0 = 0)
@@ -249,8 +342,6 @@ def _kernel(x, y, vx, vy, tx, ty, L, *, derivs: bool):
     lb = lr[:, 1:]
     dl = lr[:, :-1] - lb
     W = ua * dl + L * (lb - 2.0) + 2.0 * eta * theta
-    if not derivs:
-        return W, None, None, None, None
     ir = 1.0 / r
     ib = ir[:, 1:]
     di = ir[:, :-1] - ib
@@ -274,18 +365,30 @@ def _chain(a_xy, b_xy, ring_of_panel):
     return v, L, d[:, 0] / L, d[:, 1] / L, real
 
 
-def _solve_refined(M: np.ndarray, rhs: np.ndarray) -> np.ndarray:
-    """Solve M X = rhs to float64 accuracy: float32 LU plus iterative refinement (float64 LU if that stalls)."""
-    lu = scipy.linalg.lu_factor(M.astype(np.float32), check_finite=False)
-    x = scipy.linalg.lu_solve(lu, rhs.astype(np.float32), check_finite=False).astype(np.float64)
-    scale = np.abs(M).max() * np.abs(x).max() + np.abs(rhs).max()
-    for _ in range(10):
-        r = rhs - M @ x
-        if np.abs(r).max() <= 1e-13 * scale:
+def _solve_refined(M: np.ndarray, rhs: np.ndarray, m32: np.ndarray | None = None) -> np.ndarray:
+    """Solve M X = rhs to float64 accuracy: float32 LU plus iterative refinement (float64 LU if that stalls).
+
+    The float32 copy ``m32`` of the C-ordered M (overwritten) is factorised as Mᵀ (its Fortran-ordered
+    view, no copy) and solved transposed; residuals are computed with the float64 M.
+    """
+    a32 = M.astype(np.float32) if m32 is None else m32
+    getrf, getrs = get_lapack_funcs(("getrf", "getrs"), (a32,))
+    lu, piv, info = getrf(a32.T, overwrite_a=True)
+    scale_m = max(float(M.max()), -float(M.min()))
+    if info == 0:
+        def solve32(r):
+            out, _ = getrs(lu, piv, r.astype(np.float32), trans=1)  # (Mᵀ)ᵀ out = r
+            return out.astype(np.float64)
+
+        x = solve32(rhs)
+        scale = scale_m * np.abs(x).max() + np.abs(rhs).max()
+        for _ in range(10):
+            r = rhs - M @ x
+            if np.abs(r).max() <= 1e-13 * scale:
+                return x
+            x += solve32(r)
+        if np.all(np.isfinite(x)) and np.abs(rhs - M @ x).max() <= 1e-11 * scale:
             return x
-        x += scipy.linalg.lu_solve(lu, r.astype(np.float32), check_finite=False)
-    if np.all(np.isfinite(x)) and np.abs(rhs - M @ x).max() <= 1e-11 * scale:
-        return x
     return scipy.linalg.lu_solve(scipy.linalg.lu_factor(M, check_finite=False), rhs, check_finite=False)
 
 
@@ -314,6 +417,7 @@ class PointWorldMap:
         self.hole_points = np.asarray(hole_points, dtype=float).reshape(-1, 2)
         self.free_space = free_space
         self.build_seconds = float(build_seconds)
+        self.n_solves = 1
         self._ext_param = exterior_param
         d = self.panel_end - self.panel_start
         self.panel_length = np.hypot(d[:, 0], d[:, 1])
@@ -350,6 +454,7 @@ class PointWorldMap:
         hole_refinement: float = 2.0,
         grading: float = 0.4,
         curvature_fraction: float = 0.5,
+        gap_fraction: float = 0.25,
         blob_tolerance: float = 0.08,
         max_refinements: int = 3,
     ) -> "PointWorldMap":
@@ -360,10 +465,16 @@ class PointWorldMap:
         ``clearance_fraction`` × the length of a straight stretch between sharp corners, growing at most
         ``grading`` per unit distance, clipped to [min_panel, max_panel] (defaults: diameter/25 and
         diameter/2000).  Holes are refined ``hole_refinement`` times more (their boundary error, relative to
-        the separation of the points b_ℓ, scales with the product of the two fractions).  After each solve, a
+        the separation of the points b_ℓ, scales with the product of the two fractions).  Every panel of hole ℓ
+        is also at most ``gap_fraction`` × its gap g_ℓ (distance to the nearest other ring), on its whole
+        boundary: the separation r̄_ℓ of b_ℓ scales with g_ℓ |J_H| near the gap, while the image of the hole
+        grows with the square of its longest panels, wherever they are — long panels facing open space on the
+        far side of a hole that sits in a corridor would otherwise dominate its image.  Panels at convex
+        corners of the outer boundary are at most max_panel / 2 (H degenerates there).  After each solve, a
         hole whose image (max |H − b_ℓ| on its boundary) exceeds ``blob_tolerance`` × its separation (half the
-        distance from b_ℓ to the nearest other b or to the unit circle) gets twice finer panels, at most
-        ``max_refinements`` times, so that every hole really collapses to (nearly) a point.
+        distance from b_ℓ to the nearest other b or to the unit circle) gets twice finer panels (fraction and
+        gap cap halved), at most ``max_refinements`` times, so that every hole really collapses to (nearly) a
+        point; ``n_solves`` records how many solves the build took.
         """
         t0 = time.perf_counter()
         poly = _validate(free_space)
@@ -375,13 +486,17 @@ class PointWorldMap:
             min_panel = diam / 2000.0
         if not (0 < min_panel <= max_panel):
             raise ValueError("need 0 < min_panel <= max_panel")
-        if not (0 < clearance_fraction <= 1 and grading > 0 and curvature_fraction > 0 and hole_refinement >= 1):
-            raise ValueError("need clearance_fraction in (0, 1], grading, curvature_fraction > 0, hole_refinement >= 1")
+        if not (0 < clearance_fraction <= 1 and grading > 0 and curvature_fraction > 0 and hole_refinement >= 1
+                and gap_fraction > 0):
+            raise ValueError("need clearance_fraction in (0, 1], grading, curvature_fraction, gap_fraction > 0, "
+                             "hole_refinement >= 1")
         poly = orient(poly, sign=1.0)  # exterior counter-clockwise, holes clockwise: free side on the left
         outer = np.asarray(poly.exterior.coords)
         factors = [float(hole_refinement)] * len(poly.interiors)
+        gap_caps = gap_fraction * _hole_gaps(poly)
         for attempt in range(max_refinements + 1):
-            pw = cls._solve(poly, outer, factors, max_panel, min_panel, clearance_fraction, grading,
+            caps = [c * hole_refinement / f for c, f in zip(gap_caps, factors)]
+            pw = cls._solve(poly, outer, factors, caps, max_panel, min_panel, clearance_fraction, grading,
                             curvature_fraction)
             if not factors:
                 break
@@ -389,24 +504,29 @@ class PointWorldMap:
             if attempt == max_refinements or not np.any(coarse):
                 break
             factors = [f * 2.0 if c else f for f, c in zip(factors, coarse)]
+        pw.n_solves = attempt + 1
         pw.build_seconds = time.perf_counter() - t0
         return pw
 
     @classmethod
-    def _solve(cls, poly, outer, factors, max_panel, min_panel, clearance_fraction, grading, curvature_fraction):
-        """One discretisation (hole ℓ refined ``factors[ℓ]`` times) and solve."""
+    def _solve(cls, poly, outer, factors, caps, max_panel, min_panel, clearance_fraction, grading,
+               curvature_fraction):
+        """One discretisation (hole ℓ refined ``factors[ℓ]`` times, its panels at most ``caps[ℓ]``) and solve."""
         t0 = time.perf_counter()
-        rings = [_prepare_ring(outer, is_exterior=True, curvature_fraction=curvature_fraction)]
+        rings = [_prepare_ring(outer, is_exterior=True, curvature_fraction=curvature_fraction,
+                               corner_cap=0.5 * max_panel)]
         rings += [
             _prepare_ring(np.asarray(h.coords), is_exterior=False, curvature_fraction=curvature_fraction / f)
             for h, f in zip(poly.interiors, factors)
         ]
+        fractions = [clearance_fraction] + [clearance_fraction / f for f in factors]
         a_xy, b_xy, rid, s_a, s_b = _discretise(
             rings,
             max_panel=max_panel,
             min_panel=min_panel,
-            fractions=[clearance_fraction] + [clearance_fraction / f for f in factors],
+            fractions=fractions,
             grading=grading,
+            ring_caps=[math.inf, *caps],
         )
         n = len(a_xy)
         n_holes = len(rings) - 1
@@ -415,11 +535,13 @@ class PointWorldMap:
         mid = 0.5 * (a_xy + b_xy)
         size = n + n_holes + 1
         M = np.zeros((size, size))
-        rows = max(1, (8 * _CHUNK) // n)
+        M32 = np.empty((size, size), dtype=np.float32)  # its float32 copy for the LU, filled while cache-hot
+        rows = max(1, (2 * _CHUNK) // n)
         for i in range(0, n, rows):
             j = min(i + rows, n)
             W = _kernel(mid[i:j, 0], mid[i:j, 1], v[:, 0], v[:, 1], tx, ty, L_link, derivs=False)[0]
             M[i:j, :n] = W[:, real]
+            M32[i:j, :n] = M[i:j, :n]
         hole_of_panel = rid - 1
         on_hole = hole_of_panel >= 0
         M[np.flatnonzero(on_hole), n + hole_of_panel[on_hole]] = -1.0  # u = b_ℓ on hole ℓ
@@ -431,7 +553,9 @@ class PointWorldMap:
         rhs = np.zeros((size, 2))
         rhs[np.flatnonzero(ext), 0] = np.cos(theta)
         rhs[np.flatnonzero(ext), 1] = np.sin(theta)
-        sol = _solve_refined(M, rhs)
+        M32[:, n:] = M[:, n:]
+        M32[n:, :n] = M[n:, :n]
+        sol = _solve_refined(M, rhs, M32)
         sigma = sol[:n]
         holes = sol[n : n + n_holes]
         const = sol[n + n_holes]
@@ -546,13 +670,62 @@ class PointWorldMap:
         return self._eval(pts)
 
     # ------------------------------------------------------------------ diagnostics and inverse
-    def _hole_blobs(self, samples_per_panel: int = 4) -> np.ndarray:
-        """Per hole ℓ: max |H − b_ℓ| sampled on its panels (the size of the hole's image)."""
+    def _values_by_vertex_sums(self, pts: np.ndarray) -> np.ndarray:
+        """H at many points with the kernel regrouped by vertex (for the blob check; ~1e-12 absolute).
+
+        With coordinates relative to a centre c, u_a = p·t − a·t and η = p·n − a·n are affine in p, so
+        Σ_j σ_j W_j = p_x (R Cx) + p_y (R Cy) + R C0 + p_x (Θ Dx) + p_y (Θ Dy) + Θ D0 + const, R the
+        ln r² at the vertices and Θ the panel angles: only ln, atan2 and the wrap are done per entry.
+        """
+        vx, vy, tx, ty, L = self._geom
+        sig = self._sig_links
+        c = np.array([vx.mean(), vy.mean()])
+        ax, ay = vx[:-1] - c[0], vy[:-1] - c[1]
+        alpha = ax * tx + ay * ty  # a·t
+        beta = ay * tx - ax * ty  # a·n, n = (−t_y, t_x)
+        nv = len(vx)
+        C = np.zeros((nv, 6))
+        for col, w in enumerate((tx, ty)):
+            C[:-1, 2 * col : 2 * col + 2] += sig * w[:, None]
+            C[1:, 2 * col : 2 * col + 2] -= sig * w[:, None]
+        C[:-1, 4:6] -= sig * alpha[:, None]
+        C[1:, 4:6] += sig * (alpha + L)[:, None]
+        D = np.hstack([-2.0 * sig * ty[:, None], 2.0 * sig * tx[:, None], -2.0 * sig * beta[:, None]])
+        const = self._const - 2.0 * L @ sig
+        qx, qy = vx - c[0], vy - c[1]
+        out = np.empty((len(pts), 2))
+        rows = max(1, _CHUNK // nv)
+        for i in range(0, len(pts), rows):
+            px = pts[i : i + rows, 0] - c[0]
+            py = pts[i : i + rows, 1] - c[1]
+            dx = px[:, None] - qx
+            dy = py[:, None] - qy
+            r = dx * dx
+            r += dy * dy
+            np.maximum(r, _TINY, out=r)
+            lr = np.log(r, out=r)
+            ang = np.arctan2(dy, dx, out=dx)
+            th = np.subtract(ang[:, 1:], ang[:, :-1], out=dy[:, :-1])
+            wrap = np.rint(th * (1.0 / _TWO_PI))
+            wrap *= _TWO_PI
+            th -= wrap
+            g = lr @ C
+            g += th @ D
+            out[i : i + rows] = px[:, None] * g[:, 0:2] + py[:, None] * g[:, 2:4] + g[:, 4:6] + const
+        return out
+
+    def _hole_blobs(self) -> np.ndarray:
+        """Per hole ℓ: max |H − b_ℓ| on its panels (the size of the hole's image).
+
+        Sampled at fractions 1/8 and 7/8 of every panel: the deviation vanishes at the collocation point
+        (the midpoint) and grows towards the panel ends, so these two of the four samples of
+        ``boundary_errors`` carry its maximum (on every panel of the case-study maps).
+        """
         on = self.panel_ring > 0
-        frac = (np.arange(samples_per_panel) + 0.5) / samples_per_panel
+        frac = np.array([0.125, 0.875])
         a, b = self.panel_start[on], self.panel_end[on]
         pts = a[:, None, :] + frac[None, :, None] * (b - a)[:, None, :]
-        vals = self(pts.reshape(-1, 2)).reshape(len(a), samples_per_panel, 2)
+        vals = self._values_by_vertex_sums(pts.reshape(-1, 2)).reshape(len(a), len(frac), 2)
         ring = self.panel_ring[on] - 1
         err = np.max(np.linalg.norm(vals - self.hole_points[ring][:, None, :], axis=-1), axis=1)
         blobs = np.zeros(len(self.hole_points))
@@ -625,6 +798,14 @@ class PointWorldMap:
         if nres > 1e3 * tol:
             raise RuntimeError(f"inverse did not converge: |H(x) - chi| = {nres:.3g}")
         return x
+
+
+def _hole_gaps(poly: Polygon) -> np.ndarray:
+    """Per hole: its distance to the nearest other boundary ring (the outer boundary or another hole)."""
+    rings = np.array([poly.exterior, *poly.interiors], dtype=object)
+    d = shapely.distance(rings[1:, None], rings[None, :])
+    d[np.arange(len(rings) - 1), np.arange(1, len(rings))] = np.inf
+    return d.min(axis=1) if len(rings) > 1 else np.zeros(0)
 
 
 def _separation(b: np.ndarray) -> np.ndarray:

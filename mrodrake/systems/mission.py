@@ -209,7 +209,8 @@ class MissionLog:
 
     def summary(self) -> str:
         prim = self.primitive_events
-        return (f"{'ok' if self.ok else 'FAILED'}: {int(prim['ok'].sum())}/{len(prim)} primitives ok, "
+        state = "ok" if self.ok else ("stopped" if self.message == "not finished" else "FAILED")
+        return (f"{state}: {int(prim['ok'].sum())}/{len(prim)} primitives ok, "
                 f"{self.steps_done}/{self.steps_total} plan steps, simulated {self.sim_seconds:.1f} s in "
                 f"{self.wall_seconds:.1f} s wall" + ("" if self.ok else f" ({self.message})"))
 

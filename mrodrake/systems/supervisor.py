@@ -20,6 +20,10 @@ Sequencing (one entity moves at a time, the others are parked obstacles): a TS s
 (disengage, back off), then grasps (docking), then the region-changing actions in an order chosen by
 :func:`choose_order` so that the monitored run stays alive and reaches the plan's NBA state.
 
+Local motions (our addition, :mod:`mrodrake.control.local`): docking at a grasp point, backing off after a
+release, and the last part of every navigation / transport once the entity's ball is inside its target region
+(``SETTLE_DEPTH``) follow straight legs inside the region with the same adaptive law on the identity map.
+
 Parking brake (our addition): an entity that is not moving has zero dynamics; on arrival (speed below
 ``rest_speed``) its velocity is reset to zero.  The paper's friction term sin(·) can be negative, so an
 uncontrolled entity at small speed would otherwise drift.  Positions are continuous across every switch;
@@ -34,12 +38,15 @@ from dataclasses import dataclass, field, replace
 from typing import Sequence
 
 import numpy as np
+import shapely
 from pydrake.common.value import AbstractValue
 from pydrake.systems.framework import EventStatus, InputPortIndex, LeafSystem
 
-from mrodrake.control.freespace import Disk, entity_free_space, goal_point
+from mrodrake.control.adaptive import AdaptiveGains
+from mrodrake.control.freespace import DEFAULT_MARGIN, Disk, entity_free_space, goal_point
+from mrodrake.control.local import PATH_CLEARANCE, disk_obstacles, local_path, local_task
 from mrodrake.errors import UserError
-from mrodrake.geometry import grasp_layout
+from mrodrake.geometry import grasp_layout, polygon, workspace_free_space
 from mrodrake.ts import Grasp, Navigate, Release, Transport
 
 #: Speed (m/s) under which an arrived entity counts as at rest (then parked).
@@ -48,6 +55,14 @@ REST_SPEED = 0.05
 DOCK_TOL = 0.03
 #: Distance (m) to the goal at which a navigation / transport / back-off is complete.
 GOAL_TOL = 0.25
+#: Distance (m) to an intermediate waypoint of a local motion at which its next leg starts.
+LEG_TOL = 0.25 * PATH_CLEARANCE
+#: Width (m) of the approach ring around a region (at most; less where walls, obstacles or other regions are
+#: closer than this plus DEFAULT_MARGIN): entering it, a navigation / transport switches to the local law.
+APPROACH = 2.0
+#: Depth (m) of the entity's ball inside the approach disk of its target region at which a navigation / transport switches to the
+#: local law for the rest of the way to its goal (a tenth of it when the entity crawls below REST_SPEED).
+SETTLE_DEPTH = 0.05
 
 
 # ------------------------------------------------------------------------------------------ commands
@@ -289,6 +304,7 @@ class Supervisor(LeafSystem):
         self.rest_speed, self.dock_tol, self.goal_tol = float(rest_speed), float(dock_tol), float(goal_tol)
         self.time_limit = time_limit
         self._build_task = build_task
+        self.approach = self._approach_widths()
         self.controllers = [f"nav_{r}" for r in self.robots] + [self.coupling_name(j, t) + "_ctrl"
                                                                   for j, t in self.couplings]
         self.plants = self.entities + [self.coupling_name(j, t) for j, t in self.couplings]
@@ -389,21 +405,50 @@ class Supervisor(LeafSystem):
                         out[e] = self._team_cover(j, team)
         return out
 
+    def _future_units(self, st: SupState, X: np.ndarray, k: int, movers: set[int]) -> list[float]:
+        """Radii of what the plan brings into region k later while ``movers`` stay there (single entities, or
+        a robots-object team by its covering radius), for the planned state of that stay with the most
+        such area; entities now in region k are not counted."""
+        present = set(self._in_region(X, k, set()))
+        nm = self.N + self.M
+        best, best_area = [], 0.0
+        for spec in self.steps[max(st.step_idx, 0):]:
+            regions, grasps = spec.dst[:nm], spec.dst[nm:]
+            if any(regions[e] != k for e in movers):
+                break
+            teams: dict[int, list[int]] = {}
+            for i in range(self.N):
+                if grasps[i] >= 0:
+                    teams.setdefault(int(grasps[i]), []).append(i)
+            units = []
+            for e in range(nm):
+                if regions[e] != k or e in movers or e in present or (e < self.N and grasps[e] >= 0):
+                    continue
+                j = e - self.N
+                units.append(self._team_cover(j, teams[j]) if j in teams else float(self.radii[e]))
+            area = sum(u * u for u in units)
+            if area > best_area:
+                best, best_area = units, area
+        return best
+
     def _goal(self, st: SupState, X: np.ndarray, k: int, radius: float, movers: set[int]) -> np.ndarray:
-        """P_s goal in region k given the entities there (objects with their reserved team radius first)."""
+        """P_s goal in region k given the entities there (objects with their reserved team radius) and
+        leaving room for what the plan brings there later (:meth:`_future_units`); then with less foresight."""
         occupants = [e for e in self._in_region(X, k, movers)]
-        for override in (self._reserve(st, X, k), {}):
+        future = self._future_units(st, X, k, movers)
+        why = ""
+        for override, later in ((self._reserve(st, X, k), future), (self._reserve(st, X, k), []), ({}, [])):
             disks = self._disks(X, set(range(len(self.entities))) - set(occupants), override)
             try:
-                return goal_point(self.scenario, k, radius, disks, seed=self.seed)
+                return goal_point(self.scenario, k, radius, disks, seed=self.seed, future=later)
             except UserError as exc:
-                why = str(exc)
+                why = why or str(exc)
         raise _Failure(why)
 
-    def _dock_point(self, st: SupState, X: np.ndarray, robot: int, j: int) -> np.ndarray:
-        """Grasp point of ``robot`` next to object j: the team layout (grasp_layout of the next transport's
-        team) rotated so that the point is free and inside the region; robots already docked at j fix
-        the rotation when possible."""
+    def _dock_point(self, st: SupState, X: np.ndarray, robot: int, j: int) -> tuple[np.ndarray, np.ndarray]:
+        """Grasp point of ``robot`` next to object j and the local path to it: the team layout (grasp_layout
+        of the next transport's team) rotated so that the point is free, inside the region and reachable
+        inside it; robots already docked at j fix the rotation when possible."""
         team = self._next_team(st, j, robot)
         lay = grasp_layout(self.radii[self.N + j], [self.radii[i] for i in team], self.scenario.layout.grasp_gap)
         slot = team.index(robot)
@@ -421,13 +466,42 @@ class Supervisor(LeafSystem):
             rot = a0 - math.atan2(lay.offsets[team.index(i0), 1], lay.offsets[team.index(i0), 0])
             angles.append(rot)
         angles += list(np.linspace(0.0, 2.0 * math.pi, 72, endpoint=False))
+        why = "no free grasp point inside the region"
         for rot in angles:
             q = xo + lay.distance * np.array([math.cos(base + rot), math.sin(base + rot)])
-            if k >= 0 and math.hypot(*(q - self.centers[k])) + r + 0.5 * spacing > self.region_radii[k]:
+            if math.hypot(*(q - self.centers[k])) + r + 0.5 * spacing > self.region_radii[k]:
                 continue
             if all(math.hypot(*(q - X[e, :2])) >= r + self.radii[e] + spacing for e in others):
-                return q
-        raise _Failure(f"no free grasp point for {self.robots[robot]} at {self.objects[j]}")
+                try:
+                    return q, self._local_path(X, robot, k, q)
+                except ValueError as exc:
+                    why = str(exc)
+        raise _Failure(f"no reachable grasp point for {self.robots[robot]} at {self.objects[j]} ({why})")
+
+    def _approach_widths(self) -> np.ndarray:
+        """Width of the approach ring of every region: APPROACH, or the clearance of the region's disk to
+        walls, obstacles and other regions minus DEFAULT_MARGIN if smaller (never negative)."""
+        ws = self.scenario.workspace
+        free = workspace_free_space(polygon(ws.boundary), [polygon(o.polygon) for o in ws.obstacles])
+        out = []
+        for k, (c, R) in enumerate(zip(self.centers, self.region_radii)):
+            clear = free.boundary.distance(shapely.Point(*c)) - R
+            for m, (cm, Rm) in enumerate(zip(self.centers, self.region_radii)):
+                if m != k:
+                    clear = min(clear, math.hypot(*(c - cm)) - R - Rm)
+            out.append(max(0.0, min(APPROACH, clear - DEFAULT_MARGIN)))
+        return np.array(out)
+
+    def _local_world(self, X: np.ndarray, entity: int, radius: float, k: int, exclude=(), extra: float = 0.0):
+        """(rim centre, rim radius, disk centres, grown radii) of local motions of ``entity`` (covering
+        ``radius``) in region k, its rim enlarged by ``extra``; ``exclude``: its team, which moves with it."""
+        c, R = self.centers[k], float(self.region_radii[k] + extra - radius)
+        centers, radii = disk_obstacles(X, self.radii, radius, [entity, *exclude], c, R)
+        return c, R, centers, radii
+
+    def _local_path(self, X: np.ndarray, robot: int, k: int, goal: np.ndarray) -> np.ndarray:
+        c, R, centers, radii = self._local_world(X, robot, self.radii[robot], k)
+        return local_path(X[robot, :2], goal, centers, radii, c, R)
 
     def _region_of(self, X: np.ndarray, e: int) -> int:
         d = np.hypot(X[e, 0] - self.centers[:, 0], X[e, 1] - self.centers[:, 1])
@@ -577,24 +651,93 @@ class Supervisor(LeafSystem):
                           limit=self._limit(float(np.hypot(*(goal - start)))))
         st.phase = "moving"
 
+    def _local_leg_task(self, st: SupState, X: np.ndarray):
+        info = st.op_info
+        e, k, team = info["entity"], info["dst"], info["team"]
+        extra = self.approach[k] if info["kind"] in ("navigate", "transport") else 0.0
+        c, R, centers, radii = self._local_world(X, e, info["radius"], k, team, extra)
+        ctrl = self.scenario.control
+        try:
+            gains = replace(AdaptiveGains.from_scenario(ctrl), k_v=ctrl.k_v_local)
+            return local_task(info["legs"][info["leg"]], centers, radii, c, R, gains,
+                              k1=ctrl.k1_local, k2=ctrl.k2, start=X[e, :2], cf=max(1, len(team)),
+                              label=f"{self.entities[e]} {info['kind']} leg {info['leg'] + 1}/{len(info['legs'])}")
+        except ValueError as exc:
+            raise _Failure(f"{info['kind']} of {self.entities[e]}: {exc}") from None
+
+    def _start_local_motion(self, st: SupState, t: float, X: np.ndarray, *, kind: str, robot: int, k: int,
+                            goal: np.ndarray, legs: np.ndarray) -> None:
+        """Dock / back off inside region k along ``legs`` with the local law (mrodrake.control.local)."""
+        name = self.robots[robot]
+        start = X[robot, :2].copy()
+        st.op_info.update(goal=np.asarray(goal, dtype=float), radius=self.radii[robot], dst=k, src=k, plant=name,
+                          controller=f"nav_{name}", start=start, free=None, others=tuple(self._disks(X, {robot})),
+                          entity=robot, team=(), kind=kind, offsets=np.zeros((0, 2)), t_motion=t,
+                          legs=np.asarray(legs, dtype=float), leg=0,
+                          limit=self._limit(float(np.sum(np.linalg.norm(np.diff(np.vstack([start, legs]), axis=0),
+                                                                       axis=1)))))
+        task = self._local_leg_task(st, X)
+        st.op_info["task"] = task
+        st.tasks[f"nav_{name}"] = task
+        self._unfreeze(st, name)
+        st.phase = "moving"
+
+    def _settle(self, st: SupState, X: np.ndarray) -> None:
+        """Once a navigating / transported entity's ball is inside the approach disk of its target region
+        (the region grown by ``approach[k]``, clear of walls, obstacles and other regions), finish the motion
+        to its P_s goal with the local law (mrodrake.control.local): near its goal the paper's point-world law
+        with k1 = 0.01 moves at 0.02 (x − x_d) per second and crawls around the saddles behind the other
+        entities' holes.  Without a local path the point-world law carries on."""
+        info = st.op_info
+        if info["kind"] not in ("navigate", "transport") or info.get("legs") is not None or info.get("no_settle"):
+            return
+        e, k, r = info["entity"], info["dst"], info["radius"]
+        x = X[e, :2]
+        depth = self.region_radii[k] + self.approach[k] - math.hypot(*(x - self.centers[k])) - r
+        slow = math.hypot(*X[e, 2:]) <= self.rest_speed
+        if depth < SETTLE_DEPTH and not (slow and depth >= 0.1 * SETTLE_DEPTH):
+            return
+        c, R, centers, radii = self._local_world(X, e, r, k, info["team"], self.approach[k])
+        try:
+            legs = local_path(x, info["goal"], centers, radii, c, R)
+        except ValueError:
+            info["no_settle"] = True
+            return
+        info.update(legs=legs, leg=0)
+        st.tasks[info["controller"]] = self._local_leg_task(st, X)
+
+    def _next_leg(self, st: SupState, X: np.ndarray) -> None:
+        """Start the next leg of a local motion once the entity is within LEG_TOL of the current waypoint."""
+        info = st.op_info
+        legs = info.get("legs")
+        if legs is None or info["leg"] >= len(legs) - 1:
+            return
+        if math.hypot(*(X[info["entity"], :2] - legs[info["leg"]])) <= LEG_TOL:
+            info["leg"] += 1
+            task = self._local_leg_task(st, X)
+            if info["kind"] in ("dock", "backoff"):
+                info["task"] = task
+            st.tasks[info["controller"]] = task
+
     def _arrived(self, st: SupState, X: np.ndarray) -> bool:
-        """Completion of the current motion: at rest (speed ≤ rest_speed) and, for a docking, within
-        ``dock_tol`` of the grasp point; for a navigation / transport, the ball inside the target region with
-        half the layout spacing to spare (or within ``goal_tol`` of the goal); for a back-off, inside the
-        region and at least half-way to its goal."""
+        """Completion of the current motion: at rest (speed ≤ rest_speed) and, for a docking or a back-off, on
+        its last leg and within ``dock_tol`` of its goal; for a navigation / transport, the ball inside the
+        target region with half the layout spacing to spare (or inside it and within ``goal_tol`` of the goal)."""
         info = st.op_info
         e, k = info["entity"], info["dst"]
         x, v = X[e, :2], X[e, 2:]
         if math.hypot(*v) > self.rest_speed:
             return False
+        if info.get("legs") is not None and info["leg"] < len(info["legs"]) - 1:
+            return False
         to_goal = math.hypot(*(x - info["goal"]))
         if info["kind"] == "dock":
             return to_goal <= self.dock_tol
         margin = 0.5 * self.scenario.layout.spacing
-        inside = math.hypot(*(x - self.centers[k])) + info["radius"] + margin <= self.region_radii[k]
+        depth = self.region_radii[k] - math.hypot(*(x - self.centers[k])) - info["radius"]
         if info["kind"] == "backoff":
-            return inside and to_goal <= max(self.goal_tol, 0.5 * math.hypot(*(info["goal"] - info["start"])))
-        return inside or to_goal <= self.goal_tol
+            return to_goal <= self.dock_tol
+        return depth >= margin or (depth > 0.0 and to_goal <= self.goal_tol)
 
     def _finish_motion(self, st: SupState, t: float, X: np.ndarray) -> None:
         info = st.op_info
@@ -608,6 +751,8 @@ class Supervisor(LeafSystem):
 
     def _wait_motion(self, st: SupState, t: float, X: np.ndarray) -> bool:
         """True once the current motion has arrived (then parked); raises on its time limit."""
+        self._settle(st, X)
+        self._next_leg(st, X)
         if self._arrived(st, X):
             self._finish_motion(st, t, X)
             return True
@@ -648,11 +793,9 @@ class Supervisor(LeafSystem):
             return False
         if op.kind == "grasp":
             if st.phase == "start":
-                q = self._dock_point(st, X, a.robot, a.obj)
+                q, legs = self._dock_point(st, X, a.robot, a.obj)
                 k = op.step.src[self.N + a.obj]
-                self._start_motion(st, t, X, kind="dock", entity=a.robot, team=(), radius=self.radii[a.robot],
-                                   src=k, dst=k, goal=q, plant=self.robots[a.robot],
-                                   controller=f"nav_{self.robots[a.robot]}")
+                self._start_local_motion(st, t, X, kind="dock", robot=a.robot, k=k, goal=q, legs=legs)
                 return False
             if self._wait_motion(st, t, X):
                 st.docked[a.robot] = a.obj
@@ -685,23 +828,22 @@ class Supervisor(LeafSystem):
                 st.phase = "backoff"
             if st.phase == "backoff":
                 k = op.step.src[self.N + a.obj]
-                team = self._next_team(st, a.obj, a.robot)
-                cover = {self.N + a.obj: self._team_cover(a.obj, team)}
-                goal = None
-                for override in (cover, {}):
+                found, why = None, "P_s found no placement"
+                future = self._future_units(st, X, k, {a.robot})
+                for override, later in ((self._reserve(st, X, k), future), (self._reserve(st, X, k), []), ({}, [])):
                     occupants = self._in_region(X, k, {a.robot})
                     disks = self._disks(X, set(range(len(self.entities))) - set(occupants), override)
                     try:
-                        goal = goal_point(self.scenario, k, self.radii[a.robot], disks, seed=self.seed)
+                        goal = goal_point(self.scenario, k, self.radii[a.robot], disks, seed=self.seed,
+                                          future=later)
+                        found = (goal, self._local_path(X, a.robot, k, goal))
                         break
-                    except UserError:
-                        continue
-                if goal is None:
-                    self._primitive_event(st, t, detail="no room to back off: stays at its grasp point")
+                    except (UserError, ValueError) as exc:
+                        why = str(exc)
+                if found is None:
+                    self._primitive_event(st, t, detail=f"no room to back off ({why}): stays at its grasp point")
                     return True
-                self._start_motion(st, t, X, kind="backoff", entity=a.robot, team=(), radius=self.radii[a.robot],
-                                   src=k, dst=k, goal=goal, plant=self.robots[a.robot],
-                                   controller=f"nav_{self.robots[a.robot]}")
+                self._start_local_motion(st, t, X, kind="backoff", robot=a.robot, k=k, goal=found[0], legs=found[1])
                 return False
             if self._wait_motion(st, t, X):
                 self._primitive_event(st, t)

@@ -14,7 +14,7 @@ from shapely.geometry import MultiPolygon, Point, Polygon, box
 from shapely.ops import unary_union
 
 from mrodrake.control.bench_map import office_like_free_space
-from mrodrake.control.pointworld import PointWorldMap, _kernel
+from mrodrake.control.pointworld import PointWorldMap, _kernel, _local_width, _separation
 from mrodrake.errors import UserError
 
 ROBOT_RADIUS = 0.4
@@ -261,7 +261,10 @@ def test_ring_orientation_and_start_do_not_matter(rooms):
 
 def test_office_panel_budget(office):
     free, pw = office
-    assert 300 <= pw.n_panels <= 2000
+    # ~2030 panels at the defaults: the gap cap (panels of a hole <= gap_fraction x its gap) adds ~230 on the
+    # two long corridor walls whose door gaps are 4-5 m; uniform panels at the smallest needed length would
+    # be an order of magnitude more
+    assert 300 <= pw.n_panels <= 2100
     assert len(pw.hole_points) == len(free.interiors) == 20
     # panels graded: long in open space, short near doors and small obstacles
     assert pw.panel_length.max() > 20 * pw.panel_length.min()
@@ -332,3 +335,45 @@ def test_random_layouts_are_valid_maps(free):
     assert np.linalg.det(J).min() > 0.0
     if len(pw.hole_points):
         assert np.linalg.norm(pw.hole_points, axis=1).max() < 1.0
+
+
+def test_local_width_sees_a_wall_behind_many_own_samples():
+    """The width at a densely sampled wall is the distance to the facing wall, however many samples of the
+    wall itself lie closer (they are neighbours along the boundary and never constrain the tangent ball)."""
+    own = np.column_stack([np.linspace(0.0, 20.0, 2001), np.zeros(2001)])  # 1 cm spacing, free side up
+    facing = np.column_stack([np.linspace(0.0, 20.0, 41), np.full(41, 5.0)])  # free side down
+    xy = np.vstack([own, facing])
+    nrm = np.vstack([np.tile([0.0, 1.0], (len(own), 1)), np.tile([0.0, -1.0], (len(facing), 1))])
+    ring_id = np.concatenate([np.zeros(len(own), dtype=int), np.ones(len(facing), dtype=int)])
+    s = np.concatenate([own[:, 0], facing[:, 0]])
+    perims = np.array([40.0, 40.0])
+    radii = np.full(len(xy), 50.0)
+    width = _local_width(xy, nrm, ring_id, s, perims, radii)
+    # between the samples of the facing wall (0.5 m apart) the tangent ball touches two of them:
+    # 2ρ = 5 + (0.25)² / 5 at most
+    mid = (own[:, 0] > 1.0) & (own[:, 0] < 19.0)
+    assert np.all(width[: len(own)][mid] >= 5.0 - 1e-12)
+    assert np.all(width[: len(own)][mid] <= 5.0 + 0.25**2 / 5.0 + 1e-12)
+    # incremental update with new samples on the facing wall gives the same widths as from scratch
+    extra = np.column_stack([np.linspace(0.25, 19.75, 40), np.full(40, 5.0)])
+    xy2 = np.vstack([xy, extra])
+    nrm2 = np.vstack([nrm, np.tile([0.0, -1.0], (40, 1))])
+    rid2 = np.concatenate([ring_id, np.ones(40, dtype=int)])
+    s2 = np.concatenate([s, extra[:, 0]])
+    radii2 = np.full(len(xy2), 50.0)
+    fresh = _local_width(xy2, nrm2, rid2, s2, perims, radii2)
+    update = _local_width(xy2, nrm2, rid2, s2, perims, radii2, (np.arange(len(xy)), width, radii))
+    np.testing.assert_array_equal(update, fresh)
+
+
+def test_case_study_map_collapses_holes_in_one_solve():
+    """Case study I, longest navigation (holes in corridors along the outer wall, open space behind them):
+    the first discretisation already makes every hole's image smaller than 0.08 x its separation."""
+    from mrodrake.control.bench import longest_navigation
+    from mrodrake.systems.transition import MAP_OPTIONS
+
+    free = longest_navigation()[-1].polygon
+    pw = PointWorldMap.build(free, **{**MAP_OPTIONS, "max_refinements": 0})
+    assert pw.n_solves == 1
+    _, holes = pw.boundary_errors()
+    assert np.all(holes < 0.08 * _separation(pw.hole_points))

@@ -1,0 +1,225 @@
+"""Local motions inside one region: docking at a grasp point, backing off after a release, and settling at
+the P_s goal once a navigating or transported entity has entered its target region.
+
+Grasping is abstract in the paper (Table I: the robot and the object share a region).  Executing it, the
+robot must reach its grasp point, ``layout.grasp_gap`` (0.1 m) from the object's rim.  In the office-wide
+point world that goal lies a few millimetres from the object's hole image b_ℓ; Proposition 1 then forces
+τ ~ 1e-8 and the law crawls for hundreds of seconds.  Inside a region the free space is a disk (the region)
+minus disks (the other entities), so no map is needed: we use the identity map H(x) = x and the same
+adaptive law (paper Sec. III-A: eq. v_d, control law u, adaptation law) on a disk-world navigation function
+
+    φ(x) = k1‖x − x_d‖² + k2 Σ_ℓ (β_ℓ(d_ℓ(x)) − 1),   d_ℓ = ‖x − c_ℓ‖² − ρ_ℓ²,   d_0 = R² − ‖x − c‖²,
+
+with β_ℓ the barrier of eq. (beta_exps) with its own region of influence τ_ℓ (ρ_ℓ = r_ℓ + r: the other
+entity grown by the robot radius; d_0: the region's disk shrunk by r, so the robot never leaves the region).
+With J_H = I the paper's Lyapunov argument holds unchanged, so φ stays bounded: no collision and no exit
+from the region, whatever the masses and frictions.
+
+Settling: inside a region the paper's k1 = 0.01 makes the point-world law move at about 0.02 (x − x_d) per
+second, and entering behind another entity it crawls around the saddle of that entity's hole for hundreds of
+seconds; the region is reached at that point (the TS transition is complete), the local law only places the
+entity at its goal.
+
+Other entities packed by P_s can touch the rim of the shrunk region disk and each other, so the disk world
+may have crevices where φ has local minima.  The motion therefore follows a shortest path of straight legs
+(:func:`local_path`, a visibility graph around the grown disks) and each leg is one task whose barrier
+regions exclude the whole leg: the ideal flow ẋ = v_d runs straight along the leg, barriers act only on
+deviations.  On a leg whose barrier annuli are disjoint (the usual case), the goal is the only minimum:
+a critical point x ≠ x_d of φ needs x − x_d ∥ x − c_ℓ in an annulus, and if x_d is outside the annulus the
+tangential curvature there is 2k1(1 − ‖x − x_d‖/‖x − c_ℓ‖) < 0 (a saddle).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Sequence
+
+import numpy as np
+from scipy.sparse.csgraph import dijkstra
+
+from mrodrake.control.adaptive import V_MAX, AdaptiveGains, NavigationTask, load_sharing
+from mrodrake.control.navfunc import TAU_FRACTION, beta
+
+#: Clearance (m) the planned legs keep from the grown disks (half of it is required of every leg).
+PATH_CLEARANCE = 0.1
+#: Largest barrier annulus width (m).
+WIDTH_CAP = 0.5
+_NODES_PER_DISK = 16
+
+
+class IdentityMap:
+    """H(x) = x: the local motions need no point-world transformation (same interface as PointWorldMap)."""
+
+    hole_points = np.zeros((0, 2))
+    _HS = np.zeros((2, 2, 2))
+    _I = np.eye(2)
+
+    def __call__(self, x) -> np.ndarray:
+        return np.asarray(x, dtype=float)
+
+    def jacobian(self, x) -> np.ndarray:
+        return self._I.copy()
+
+    def evaluate(self, x) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        return np.asarray(x, dtype=float), self._I, self._HS
+
+
+@dataclass(frozen=True)
+class DiskWorldNavigationFunction:
+    """φ of the module docstring: goal x_d, disks (c_ℓ, ρ_ℓ) with regions of influence τ_ℓ, and the rim
+    disk (c, R) with τ_0 (τ_0 = 0: no rim barrier).  Same interface as the point-world φ (``evaluate``)."""
+
+    goal: np.ndarray
+    centers: np.ndarray
+    radii: np.ndarray
+    taus: np.ndarray
+    rim_center: np.ndarray
+    rim_radius: float
+    tau0: float
+    k1: float = 1.0
+    k2: float = 1.0
+
+    def distances(self, x) -> np.ndarray:
+        """(d_0, d_1..d_L) at x."""
+        x = np.asarray(x, dtype=float)
+        diff = x - self.centers
+        r = x - self.rim_center
+        return np.concatenate([[self.rim_radius**2 - r @ r], np.einsum("ij,ij->i", diff, diff) - self.radii**2])
+
+    def evaluate(self, x) -> tuple[float, np.ndarray, np.ndarray]:
+        """(φ, ∇φ, ∇²φ) at x."""
+        x = np.asarray(x, dtype=float)
+        e = x - self.goal
+        value, grad, hess = self.k1 * float(e @ e), 2.0 * self.k1 * e, 2.0 * self.k1 * np.eye(2)
+        d = self.distances(x)
+        taus = np.concatenate([[self.tau0], self.taus])
+        active = np.flatnonzero((taus > 0.0) & (d < taus))
+        if len(active) == 0:
+            return value, grad, hess
+        grad_d = np.vstack([-2.0 * (x - self.rim_center), 2.0 * (x - self.centers)])[active]
+        hess_d = np.where(active == 0, -2.0, 2.0)
+        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+            b, db, ddb = beta(d[active], taus[active])
+        value += self.k2 * float(np.sum(b - 1.0))
+        grad = grad + self.k2 * (db @ grad_d)
+        hess = hess + self.k2 * (float(db @ hess_d) * np.eye(2) + (grad_d.T * ddb) @ grad_d)
+        return value, grad, hess
+
+
+def _segment_distances(p: np.ndarray, q: np.ndarray, centers: np.ndarray) -> np.ndarray:
+    """Distance from every centre (L, 2) to every segment p_k q_k (k, 2): shape (k, L)."""
+    d = q - p
+    dd = np.maximum(np.einsum("ij,ij->i", d, d), 1e-300)
+    w = centers[None, :, :] - p[:, None, :]
+    s = np.clip(np.einsum("kld,kd->kl", w, d) / dd[:, None], 0.0, 1.0)
+    near = p[:, None, :] + s[..., None] * d[:, None, :]
+    return np.linalg.norm(centers[None, :, :] - near, axis=-1)
+
+
+def local_path(start, goal, centers, radii, rim_center, rim_radius, clearance: float = PATH_CLEARANCE,
+               nodes_per_disk: int = _NODES_PER_DISK) -> np.ndarray:
+    """Shortest path of straight legs from ``start`` to ``goal`` inside the disk (rim_center, rim_radius)
+    avoiding the disks (centers, radii): waypoints (k, 2), the last one the goal.
+
+    Candidate corners sit on circles of radius (ρ + clearance)/cos(π/n) around each disk (n =
+    ``nodes_per_disk``), so consecutive corners of one disk are joined by chords tangent to the grown circle;
+    a leg is admissible when it stays ``clearance``/2 from every disk (less next to the start or the goal if
+    they are closer than that).  Legs stay in the rim disk by convexity.  Raises ValueError without a path.
+    """
+    s = np.asarray(start, dtype=float).reshape(2)
+    g = np.asarray(goal, dtype=float).reshape(2)
+    c = np.asarray(centers, dtype=float).reshape(-1, 2)
+    rho = np.asarray(radii, dtype=float).reshape(-1)
+    rc = np.asarray(rim_center, dtype=float).reshape(2)
+    for name, p in (("start", s), ("goal", g)):
+        if len(c) and np.any(np.linalg.norm(c - p, axis=1) <= rho):
+            raise ValueError(f"local path: the {name} ({p[0]:.3f}, {p[1]:.3f}) overlaps another entity")
+    if np.linalg.norm(g - rc) > rim_radius:
+        raise ValueError("local path: the goal is outside the region")
+    if len(c) == 0:
+        return g[None, :]
+
+    def own_clear(p):
+        return float(np.min(np.linalg.norm(c - p, axis=1) - rho))
+
+    need = min(0.5 * clearance, 0.5 * own_clear(s), 0.5 * own_clear(g))
+    ang = np.arange(nodes_per_disk) * (2.0 * math.pi / nodes_per_disk)
+    ring = np.column_stack([np.cos(ang), np.sin(ang)]) / math.cos(math.pi / nodes_per_disk)
+    corners = (c[:, None, :] + (rho + clearance)[:, None, None] * ring[None, :, :]).reshape(-1, 2)
+    ok = np.linalg.norm(corners - rc, axis=1) <= rim_radius - 0.5 * clearance
+    ok &= np.all(np.linalg.norm(corners[:, None, :] - c[None, :, :], axis=-1) - rho[None, :] >= need, axis=1)
+    nodes = np.vstack([s, g, corners[ok]])
+    n = len(nodes)
+    i, j = np.triu_indices(n, 1)
+    dist = _segment_distances(nodes[i], nodes[j], c)
+    free = np.all(dist - rho[None, :] >= need, axis=1)
+    W = np.zeros((n, n))
+    lengths = np.linalg.norm(nodes[j] - nodes[i], axis=1)
+    W[i[free], j[free]] = np.maximum(lengths[free], 1e-12)
+    W = W + W.T
+    best, pred = dijkstra(W, directed=False, indices=0, return_predecessors=True)
+    if not np.isfinite(best[1]):
+        raise ValueError("local path: no collision-free path inside the region between the start and the goal")
+    path, k = [], 1
+    while k != 0:
+        path.append(nodes[k])
+        k = pred[k]
+    return np.array(path[::-1])
+
+
+def leg_barriers(leg_start, leg_end, centers, radii, rim_center, rim_radius, *, width_cap: float = WIDTH_CAP,
+                 fraction: float = TAU_FRACTION) -> tuple[np.ndarray, float]:
+    """Regions of influence (τ_1..τ_L, τ_0) for one leg (Prop. 1 per barrier, module docstring).
+
+    Disk ℓ gets an annulus of width w_ℓ = min(f·(leg clearance to it), f·½ gap to every disk and to the rim
+    where that gap is positive, width_cap), τ_ℓ = (ρ_ℓ + w_ℓ)² − ρ_ℓ²; the rim band τ_0 =
+    f·min over the leg of d_0 (a chord's d_0 is smallest at an end point), capped likewise.  The whole leg,
+    its goal included, lies outside every barrier region.
+    """
+    p = np.asarray(leg_start, dtype=float).reshape(1, 2)
+    q = np.asarray(leg_end, dtype=float).reshape(1, 2)
+    c = np.asarray(centers, dtype=float).reshape(-1, 2)
+    rho = np.asarray(radii, dtype=float).reshape(-1)
+    rc = np.asarray(rim_center, dtype=float).reshape(2)
+    w = np.full(len(c), float(width_cap))
+    if len(c):
+        w = np.minimum(w, fraction * (_segment_distances(p, q, c)[0] - rho))
+        rim_gap = rim_radius - np.linalg.norm(c - rc, axis=1) - rho
+        w = np.where(rim_gap > 0.0, np.minimum(w, fraction * 0.5 * rim_gap), w)
+        if len(c) > 1:
+            gap = np.linalg.norm(c[:, None, :] - c[None, :, :], axis=-1) - rho[:, None] - rho[None, :]
+            np.fill_diagonal(gap, np.inf)
+            gap = np.where(gap > 0.0, gap, np.inf)
+            w = np.minimum(w, fraction * 0.5 * gap.min(axis=1))
+    if np.any(w <= 0.0):
+        raise ValueError("leg_barriers: the leg touches another entity")
+    taus = (rho + w) ** 2 - rho**2
+    d0 = min(rim_radius**2 - float((p[0] - rc) @ (p[0] - rc)), rim_radius**2 - float((q[0] - rc) @ (q[0] - rc)))
+    cap0 = (rim_radius**2 - (rim_radius - width_cap) ** 2)
+    tau0 = max(0.0, min(fraction * d0, cap0))
+    return taus, tau0
+
+
+def local_task(goal, centers, radii, rim_center, rim_radius, gains: AdaptiveGains, *, k1: float, k2: float,
+               start, cf: Sequence[float] | int = 1, v_max: float = V_MAX, label: str = "") -> NavigationTask:
+    """The adaptive law of paper Sec. III-A on the identity map for the leg start → goal (module docstring);
+    ``cf``: load sharing of a transporting team (u_ℓ = cf_ℓ u)."""
+    g = np.asarray(goal, dtype=float).reshape(2)
+    c = np.asarray(centers, dtype=float).reshape(-1, 2)
+    rho = np.asarray(radii, dtype=float).reshape(-1)
+    taus, tau0 = leg_barriers(start, g, c, rho, rim_center, rim_radius)
+    nf = DiskWorldNavigationFunction(g, c, rho, taus, np.asarray(rim_center, dtype=float).reshape(2),
+                                     float(rim_radius), tau0, float(k1), float(k2))
+    return NavigationTask(IdentityMap(), nf, g, gains, load_sharing(cf), float(v_max), label)
+
+
+def disk_obstacles(positions: np.ndarray, radii: Sequence[float], robot_radius: float, exclude: Sequence[int],
+                   rim_center, rim_radius: float) -> tuple[np.ndarray, np.ndarray]:
+    """Centres and grown radii r_e + r of the entities (rows of ``positions``) that can reach the disk of
+    radius ``rim_radius`` (robot centres) around ``rim_center``, except ``exclude``."""
+    X = np.asarray(positions, dtype=float)[:, :2]
+    r = np.asarray(radii, dtype=float) + float(robot_radius)
+    near = np.linalg.norm(X - np.asarray(rim_center, dtype=float), axis=1) < rim_radius + r
+    keep = [e for e in range(len(X)) if near[e] and e not in set(exclude)]
+    return X[keep].reshape(-1, 2), r[keep]
