@@ -445,10 +445,11 @@ class Supervisor(LeafSystem):
                 why = why or str(exc)
         raise _Failure(why)
 
-    def _dock_point(self, st: SupState, X: np.ndarray, robot: int, j: int) -> tuple[np.ndarray, np.ndarray]:
-        """Grasp point of ``robot`` next to object j and the local path to it: the team layout (grasp_layout
-        of the next transport's team) rotated so that the point is free, inside the region and reachable
-        inside it; robots already docked at j fix the rotation when possible."""
+    def _dock_point(self, st: SupState, X: np.ndarray, robot: int, j: int) -> tuple[np.ndarray, np.ndarray, float]:
+        """Grasp point of ``robot`` next to object j, the local path to it and the growth of the region the
+        path may use: the team layout (grasp_layout of the next transport's team) rotated so that the point
+        is free, inside the region and reachable inside it (else through the approach ring, if
+        :meth:`_excursion_ok`); robots already docked at j fix the rotation when possible."""
         team = self._next_team(st, j, robot)
         lay = grasp_layout(self.radii[self.N + j], [self.radii[i] for i in team], self.scenario.layout.grasp_gap)
         slot = team.index(robot)
@@ -467,16 +468,32 @@ class Supervisor(LeafSystem):
             angles.append(rot)
         angles += list(np.linspace(0.0, 2.0 * math.pi, 72, endpoint=False))
         why = "no free grasp point inside the region"
+        candidates = []
         for rot in angles:
             q = xo + lay.distance * np.array([math.cos(base + rot), math.sin(base + rot)])
             if math.hypot(*(q - self.centers[k])) + r + 0.5 * spacing > self.region_radii[k]:
                 continue
             if all(math.hypot(*(q - X[e, :2])) >= r + self.radii[e] + spacing for e in others):
+                candidates.append(q)
+        extras = [0.0] + ([float(self.approach[k])] if self.approach[k] > 0 and self._excursion_ok(st, X, robot)
+                          else [])
+        for extra in extras:
+            for q in candidates:
                 try:
-                    return q, self._local_path(X, robot, k, q)
+                    return q, self._local_path(X, robot, k, q, extra), extra
                 except ValueError as exc:
                     why = str(exc)
         raise _Failure(f"no reachable grasp point for {self.robots[robot]} at {self.objects[j]} ({why})")
+
+    def _excursion_ok(self, st: SupState, X: np.ndarray, robot: int) -> bool:
+        """Whether ``robot`` may leave its region for a moment while docking (through the approach ring,
+        when the region is too crowded for a path inside it): the monitored NBA run, reading the current
+        label and then the label with the robot in no region, must still contain the plan's NBA state of
+        the current step."""
+        regions = list(entity_regions(self.centers, self.radii, X[:, :2], self.region_radii, tol=1e-6))
+        regions[robot] = -1
+        run = advance_run(self.nba, advance_run(self.nba, st.run, st.label), label_of(regions, self.K))
+        return bool(run) and self.steps[st.step_idx].dst_q in run
 
     def _approach_widths(self) -> np.ndarray:
         """Width of the approach ring of every region: APPROACH, or the clearance of the region's disk to
@@ -499,8 +516,8 @@ class Supervisor(LeafSystem):
         centers, radii = disk_obstacles(X, self.radii, radius, [entity, *exclude], c, R)
         return c, R, centers, radii
 
-    def _local_path(self, X: np.ndarray, robot: int, k: int, goal: np.ndarray) -> np.ndarray:
-        c, R, centers, radii = self._local_world(X, robot, self.radii[robot], k)
+    def _local_path(self, X: np.ndarray, robot: int, k: int, goal: np.ndarray, extra: float = 0.0) -> np.ndarray:
+        c, R, centers, radii = self._local_world(X, robot, self.radii[robot], k, (), extra)
         return local_path(X[robot, :2], goal, centers, radii, c, R)
 
     def _region_of(self, X: np.ndarray, e: int) -> int:
@@ -654,7 +671,7 @@ class Supervisor(LeafSystem):
     def _local_leg_task(self, st: SupState, X: np.ndarray):
         info = st.op_info
         e, k, team = info["entity"], info["dst"], info["team"]
-        extra = self.approach[k] if info["kind"] in ("navigate", "transport") else 0.0
+        extra = self.approach[k] if info["kind"] in ("navigate", "transport") else info.get("extra", 0.0)
         c, R, centers, radii = self._local_world(X, e, info["radius"], k, team, extra)
         ctrl = self.scenario.control
         try:
@@ -666,14 +683,15 @@ class Supervisor(LeafSystem):
             raise _Failure(f"{info['kind']} of {self.entities[e]}: {exc}") from None
 
     def _start_local_motion(self, st: SupState, t: float, X: np.ndarray, *, kind: str, robot: int, k: int,
-                            goal: np.ndarray, legs: np.ndarray) -> None:
-        """Dock / back off inside region k along ``legs`` with the local law (mrodrake.control.local)."""
+                            goal: np.ndarray, legs: np.ndarray, extra: float = 0.0) -> None:
+        """Dock / back off inside region k (grown by ``extra``) along ``legs`` with the local law
+        (mrodrake.control.local)."""
         name = self.robots[robot]
         start = X[robot, :2].copy()
         st.op_info.update(goal=np.asarray(goal, dtype=float), radius=self.radii[robot], dst=k, src=k, plant=name,
                           controller=f"nav_{name}", start=start, free=None, others=tuple(self._disks(X, {robot})),
                           entity=robot, team=(), kind=kind, offsets=np.zeros((0, 2)), t_motion=t,
-                          legs=np.asarray(legs, dtype=float), leg=0,
+                          legs=np.asarray(legs, dtype=float), leg=0, extra=float(extra),
                           limit=self._limit(float(np.sum(np.linalg.norm(np.diff(np.vstack([start, legs]), axis=0),
                                                                        axis=1)))))
         task = self._local_leg_task(st, X)
@@ -793,9 +811,9 @@ class Supervisor(LeafSystem):
             return False
         if op.kind == "grasp":
             if st.phase == "start":
-                q, legs = self._dock_point(st, X, a.robot, a.obj)
+                q, legs, extra = self._dock_point(st, X, a.robot, a.obj)
                 k = op.step.src[self.N + a.obj]
-                self._start_local_motion(st, t, X, kind="dock", robot=a.robot, k=k, goal=q, legs=legs)
+                self._start_local_motion(st, t, X, kind="dock", robot=a.robot, k=k, goal=q, legs=legs, extra=extra)
                 return False
             if self._wait_motion(st, t, X):
                 st.docked[a.robot] = a.obj

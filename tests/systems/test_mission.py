@@ -37,7 +37,6 @@ def _positions(out: Path, scn):
     return T, P, V, radii, names
 
 
-@pytest.mark.slow
 def test_every_primitive_ok(mission):
     scn, plan, log, out = mission
     ev = pd.read_csv(out / "events.csv")
@@ -50,7 +49,6 @@ def test_every_primitive_ok(mission):
     assert len(list((out / "figures").glob("fig[2-5]_*.png"))) == 4
 
 
-@pytest.mark.slow
 def test_clearance_positive(mission):
     """Every entity's disk stays clear of walls, obstacles and every other entity at every sample."""
     scn, plan, log, out = mission
@@ -70,7 +68,6 @@ def test_clearance_positive(mission):
             assert gap.min() > 0.0, (names[a], names[b], gap.min())
 
 
-@pytest.mark.slow
 def test_no_jumps(mission):
     """|Δx| ≤ Δt (V + A Δt) per entity: V the largest logged speed, A the largest logged |Δv|/Δt; between
     samples |v(t)| ≤ |v(t_k)| + A (t − t_k), so the displacement over one sample period is at most
@@ -88,7 +85,6 @@ def test_no_jumps(mission):
         assert (step <= bound).all(), (name, step.max(), bound.max())
 
 
-@pytest.mark.slow
 def test_monitored_run_consistent(mission):
     """Re-run the NBA subset monitor on the logged trajectory: it never dies and, at the end of every
     executed plan step, contains the plan's NBA state."""
@@ -127,7 +123,6 @@ def test_monitored_run_consistent(mission):
     assert k == len(steps)
 
 
-@pytest.mark.slow
 def test_final_state_equals_plan(mission):
     scn, plan, log, out = mission
     T, P, V, radii, names = _positions(out, scn)
