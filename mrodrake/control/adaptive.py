@@ -45,6 +45,19 @@ from mrodrake.control.navfunc import TAU_FRACTION, beta, desired_velocity
 #: Default speed bound v_max (m/s) of the desired velocity (module docstring).
 V_MAX = 2.0
 
+#: κ in ρ₀ = 1 − κ δ_max, the radius of the circle barrier (:class:`LocalBarrierNavigationFunction`).  δ_max
+#: (``PointWorldMap.circle_deficit``) is measured on a finite sample of the outer boundary; κ = 2 leaves as much
+#: again for the ridge of |H| between samples, so that |H| > ρ₀ holds on a whole curve around ∂F.
+CIRCLE_DEFICIT_FACTOR = 2.0
+
+
+def circle_radius(pw_map) -> float:
+    """ρ₀ = 1 − κ δ_max for a point-world map (δ_max = ``circle_deficit``, 0 for maps without it)."""
+    delta = float(getattr(pw_map, "circle_deficit", 0.0))
+    if not 0.0 <= CIRCLE_DEFICIT_FACTOR * delta < 1.0:
+        raise ValueError(f"point-world map misses the unit circle by δ_max = {delta:.3g} on its outer boundary")
+    return 1.0 - CIRCLE_DEFICIT_FACTOR * delta
+
 
 @dataclass(frozen=True)
 class AdaptiveGains:
@@ -106,7 +119,15 @@ def transport_inputs(u: np.ndarray, cf: np.ndarray) -> np.ndarray:
 @dataclass(frozen=True)
 class LocalBarrierNavigationFunction:
     """φ(χ) = k1‖χ − χ_d‖² + k2 Σ_{ℓ∈J̄0} (β_ℓ(d_ℓ(χ)) − 1) with one region of influence τ_ℓ per barrier
-    (β_ℓ(x) = β(x/τ_ℓ), β of eq. (beta_exps)); ℓ = 0 is the unit circle (d_0 = 1 − ‖χ‖²).
+    (β_ℓ(x) = β(x/τ_ℓ), β of eq. (beta_exps)); ℓ = 0 is the circle of radius ρ₀ ≤ 1 (d_0 = ρ₀² − ‖χ‖²).
+
+    Circle radius ρ₀ = 1 − κ δ_max (our correction, :data:`CIRCLE_DEFICIT_FACTOR`): the discrete map H falls
+    short of the unit circle on the outer boundary ∂F by up to δ_max (``PointWorldMap.circle_deficit``), so
+    with d_0 = 1 − ‖χ‖² the barrier β_0 stays finite (or even 1) on ∂F and nothing stops an entity at the
+    wall.  With ρ₀ below the ridge of |H| along ∂F, every path in F from a start with ‖H‖ < ρ₀ to ∂F crosses
+    ‖H‖ = ρ₀ (continuity), where d_0 = 0 and β_0 = ∞: property 1 of Def. 2nd-order NF (φ → ∞ on the
+    boundary of the point world) holds on the sublevel sets the Lyapunov argument uses, and Proposition 1's
+    construction is unchanged with the unit disk replaced by the disk of radius ρ₀.  ρ₀ = 1 is the paper's φ.
 
     A generalisation of Def. 2nd-order NF with Proposition 1 applied per barrier (our choice, see
     :func:`local_barriers`): the paper's single τ < r̄² is set by the two closest points b_ℓ of the whole
@@ -120,9 +141,10 @@ class LocalBarrierNavigationFunction:
 
     goal: np.ndarray
     obstacles: np.ndarray
-    taus: np.ndarray  # (L + 1,): τ_0 (unit circle), τ_1..τ_L (holes)
+    taus: np.ndarray  # (L + 1,): τ_0 (circle of radius rho0), τ_1..τ_L (holes)
     k1: float = 1.0
     k2: float = 1.0
+    rho0: float = 1.0
 
     @property
     def tau(self) -> float:
@@ -134,7 +156,7 @@ class LocalBarrierNavigationFunction:
         chi = np.asarray(chi, dtype=float)
         e = chi - self.goal
         diff = chi - self.obstacles
-        d = np.concatenate([[1.0 - chi @ chi], np.einsum("ij,ij->i", diff, diff)])
+        d = np.concatenate([[self.rho0 * self.rho0 - chi @ chi], np.einsum("ij,ij->i", diff, diff)])
         grad_d = np.vstack([-2.0 * chi, 2.0 * diff])
         hess_d = np.concatenate([[-2.0], np.full(len(diff), 2.0)])
         with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
@@ -147,26 +169,36 @@ class LocalBarrierNavigationFunction:
 
 
 def local_barriers(goal, obstacles, starts=(), *, rho_cap: float, tau_cap: float,
-                   fraction: float = TAU_FRACTION) -> np.ndarray:
-    """Regions of influence (τ_0, τ_1..τ_L) for :class:`LocalBarrierNavigationFunction` (Prop. 1 per barrier).
+                   fraction: float = TAU_FRACTION, rho0: float = 1.0) -> np.ndarray:
+    """Regions of influence (τ_0, τ_1..τ_L) for :class:`LocalBarrierNavigationFunction` (Prop. 1 per barrier),
+    circle of radius ρ₀ ≤ 1 (``rho0``).
 
     Hole ℓ gets radius ρ_ℓ = √τ_ℓ = min(√f · g_ℓ, √f ‖χ_d − b_ℓ‖, √f ‖χ_s − b_ℓ‖, ρ_cap, √τ_cap) with
-    g_ℓ = min(½ min_m ‖b_ℓ − b_m‖, ½ (1 − ‖b_ℓ‖)) (f = ``fraction``), so barrier disks are pairwise disjoint
-    and leave room to the circle; the circle band {1 − ‖χ‖² < τ_0} gets
-    τ_0 = min(f min_ℓ (1 − (‖b_ℓ‖ + ρ_ℓ)²), f (1 − ‖χ_d‖²), f (1 − ‖χ_s‖²), τ_cap), disjoint from every
-    hole barrier.  χ_d and the starts χ_s lie outside every region (β' = β'' = 0 there).
+    g_ℓ = min(½ min_m ‖b_ℓ − b_m‖, ½ |ρ₀ − ‖b_ℓ‖|) (f = ``fraction``), so barrier disks are pairwise disjoint
+    and leave room to the circle; the circle band {ρ₀² − ‖χ‖² < τ_0} gets
+    τ_0 = min(f min_ℓ (ρ₀² − (‖b_ℓ‖ + ρ_ℓ)²), f (ρ₀² − ‖χ_d‖²), f (ρ₀² − ‖χ_s‖²), τ_cap) (ℓ over the holes
+    with ‖b_ℓ‖ < ρ₀), disjoint from every hole barrier.  χ_d and the starts χ_s lie outside every region
+    (β' = β'' = 0 there); a ValueError is raised unless they lie strictly inside the circle of radius ρ₀.
+    A hole with ‖b_ℓ‖ > ρ₀ (its neighbourhood in F is squeezed against ∂F beyond the circle barrier, so
+    unreachable) gets a disk outside the circle of radius ρ₀, where it never acts.
     """
+    if not 0.0 < rho0 <= 1.0:
+        raise ValueError(f"circle radius rho0 must be in (0, 1], got {rho0!r}")
     g = np.asarray(goal, dtype=float).reshape(2)
     b = np.asarray(obstacles, dtype=float).reshape(-1, 2)
     pts = [g] + [np.asarray(p, dtype=float).reshape(2) for p in starts]
+    r2 = rho0 * rho0
     for p in pts:
-        if not p @ p < 1.0 or (len(b) and np.min(np.linalg.norm(b - p, axis=1)) <= 0.0):
+        if not p @ p < r2:
+            raise ValueError(f"point {p.tolist()} (‖χ‖ = {math.sqrt(p @ p):.6g}) is not inside the circle barrier "
+                             f"ρ₀ = {rho0:.6g} (ρ₀ = 1 − κ δ_max, δ_max the map's circle deficit)")
+        if len(b) and np.min(np.linalg.norm(b - p, axis=1)) <= 0.0:
             raise ValueError(f"point {p.tolist()} is not inside the point world")
     sf = math.sqrt(fraction)
     nb = np.linalg.norm(b, axis=1)
     rho = np.full(len(b), min(rho_cap, math.sqrt(tau_cap)))
     if len(b):
-        gap = 0.5 * (1.0 - nb)
+        gap = 0.5 * np.abs(rho0 - nb)
         if len(b) > 1:
             dist = np.linalg.norm(b[:, None, :] - b[None, :, :], axis=-1)
             np.fill_diagonal(dist, np.inf)
@@ -175,10 +207,11 @@ def local_barriers(goal, obstacles, starts=(), *, rho_cap: float, tau_cap: float
         for p in pts:
             rho = np.minimum(rho, sf * np.linalg.norm(b - p, axis=1))
     tau0 = tau_cap
-    if len(b):
-        tau0 = min(tau0, fraction * float(np.min(1.0 - (nb + rho) ** 2)))
+    inner = nb < rho0
+    if np.any(inner):
+        tau0 = min(tau0, fraction * float(np.min(r2 - (nb[inner] + rho[inner]) ** 2)))
     for p in pts:
-        tau0 = min(tau0, fraction * (1.0 - float(p @ p)))
+        tau0 = min(tau0, fraction * (r2 - float(p @ p)))
     return np.concatenate([[tau0], rho * rho])
 
 
@@ -213,7 +246,8 @@ class NavigationTask:
               tau_cap: float, cf: Sequence[float] | int = 1, start=None, v_max: float = V_MAX,
               label: str = "") -> "NavigationTask":
         """Task for workspace goal x_d on map H: χ_d = H(x_d), b_ℓ the map's hole points, φ with per-barrier
-        regions of influence (:func:`local_barriers`, caps ρ ≤ r_bar_cap, τ ≤ tau_cap).
+        regions of influence (:func:`local_barriers`, caps ρ ≤ r_bar_cap, τ ≤ tau_cap) and the circle
+        barrier at ρ₀ = 1 − κ δ_max (:func:`circle_radius`, δ_max the map's ``circle_deficit``).
 
         With ``start`` given, χ_s = H(start) is also kept outside every barrier region: entities packed by
         P_s sit ~10 cm apart, and a start inside a barrier region makes ∇φ, hence v_d and u, astronomically
@@ -224,9 +258,10 @@ class NavigationTask:
             raise ValueError(f"v_max must be > 0, got {v_max!r}")
         chi_d = pw_map(goal)
         starts = [] if start is None else [pw_map(np.asarray(start, dtype=float).reshape(2))]
-        taus = local_barriers(chi_d, pw_map.hole_points, starts, rho_cap=r_bar_cap, tau_cap=tau_cap)
+        rho0 = circle_radius(pw_map)
+        taus = local_barriers(chi_d, pw_map.hole_points, starts, rho_cap=r_bar_cap, tau_cap=tau_cap, rho0=rho0)
         nf = LocalBarrierNavigationFunction(chi_d, np.asarray(pw_map.hole_points, dtype=float).reshape(-1, 2),
-                                            taus, float(k1), float(k2))
+                                            taus, float(k1), float(k2), rho0)
         return cls(pw_map, nf, goal, gains, load_sharing(cf), float(v_max), label)
 
     def evaluate(self, x: np.ndarray, xdot: np.ndarray, m_hat: float, alpha_hat: float) -> ControlEval:

@@ -40,6 +40,9 @@ _LOCAL_ARC_RATIO = 2.5  # boundary points closer along the boundary than this x 
 _CHUNK = 1 << 15  # kernel entries per block in batch evaluation and assembly
 _TWO_PI = 2.0 * math.pi
 _TINY = 1e-300
+_CORNER_FRACTION = 1.0 / 40.0  # panels at convex corners of the outer boundary: at most this x max_panel
+_RIDGE_FRACTIONS = (0.125, 0.875)  # circle-deficit samples along each outer panel (where its error peaks)
+_RIDGE_OFFSETS = (0.0625, 0.125, 0.25, 0.5)  # inward steps (x panel length) searched for the ridge of |H|
 
 
 @dataclass
@@ -441,6 +444,7 @@ class PointWorldMap:
         self._const_point = self._const - 2.0 * L @ sig
         self._mid_tree = cKDTree(0.5 * (self.panel_start + self.panel_end))
         self._seeds = None
+        self.circle_deficit = 0.0  # δ_max of ``outer_ridge_deficit``; set by ``build``
 
     # ------------------------------------------------------------------ construction
     @classmethod
@@ -470,11 +474,14 @@ class PointWorldMap:
         boundary: the separation r̄_ℓ of b_ℓ scales with g_ℓ |J_H| near the gap, while the image of the hole
         grows with the square of its longest panels, wherever they are — long panels facing open space on the
         far side of a hole that sits in a corridor would otherwise dominate its image.  Panels at convex
-        corners of the outer boundary are at most max_panel / 2 (H degenerates there).  After each solve, a
+        corners of the outer boundary are at most max_panel / 40 (H degenerates there; with max_panel / 2 its
+        boundary image sank to |H| ≈ 0.97 at room corners of the case-study office, far inside the circle
+        barrier's band 1 − |χ|² < τ₀ ~ 1e-3, so nothing kept entities out of those corners).  After each solve, a
         hole whose image (max |H − b_ℓ| on its boundary) exceeds ``blob_tolerance`` × its separation (half the
         distance from b_ℓ to the nearest other b or to the unit circle) gets twice finer panels (fraction and
         gap cap halved), at most ``max_refinements`` times, so that every hole really collapses to (nearly) a
-        point; ``n_solves`` records how many solves the build took.
+        point; ``n_solves`` records how many solves the build took.  ``circle_deficit`` is δ_max of
+        :meth:`outer_ridge_deficit` (how far short of the unit circle |H| stays along the outer boundary).
         """
         t0 = time.perf_counter()
         poly = _validate(free_space)
@@ -505,6 +512,7 @@ class PointWorldMap:
                 break
             factors = [f * 2.0 if c else f for f, c in zip(factors, coarse)]
         pw.n_solves = attempt + 1
+        pw.circle_deficit = pw.outer_ridge_deficit()
         pw.build_seconds = time.perf_counter() - t0
         return pw
 
@@ -514,7 +522,7 @@ class PointWorldMap:
         """One discretisation (hole ℓ refined ``factors[ℓ]`` times, its panels at most ``caps[ℓ]``) and solve."""
         t0 = time.perf_counter()
         rings = [_prepare_ring(outer, is_exterior=True, curvature_fraction=curvature_fraction,
-                               corner_cap=0.5 * max_panel)]
+                               corner_cap=_CORNER_FRACTION * max_panel)]
         rings += [
             _prepare_ring(np.asarray(h.coords), is_exterior=False, curvature_fraction=curvature_fraction / f)
             for h, f in zip(poly.interiors, factors)
@@ -754,6 +762,41 @@ class PointWorldMap:
             err = np.max(np.linalg.norm(vals[~ext] - self.hole_points[ring][:, None, :], axis=-1), axis=1)
             np.maximum.at(holes, ring, err)
         return outer, holes
+
+    def outer_ridge_deficit(self) -> float:
+        """δ_max = max over outer-boundary samples p of (1 − max_{0 ≤ t ≤ ℓ/2} |H(p + t n)|), n the inward normal.
+
+        The discrete H only matches the unit circle at the collocation points: between them |H| < 1 on ∂F
+        (≈1e-4 at door jambs, ≈1e-3 along long panels), and its maximum along the inward normal (the ridge
+        of |H|) may lie a fraction of a panel inside.  Every sample p (fractions ``_RIDGE_FRACTIONS`` of each
+        outer panel of length ℓ) has a ridge point with |H| ≥ 1 − δ_max on its normal within ℓ/2 (less than
+        an eighth of the local clearance, so inside F), so the level set |H| = ρ₀ < 1 − δ_max separates
+        every start with |H| < ρ₀ from the outer boundary (used by the circle barrier of
+        :class:`mrodrake.control.adaptive.LocalBarrierNavigationFunction`).  Samples whose boundary deficit
+        is already below the running δ_max cannot raise it (the ridge is at least the boundary value), so
+        only the worst ones are stepped inward: a few thousand evaluations.
+        """
+        ext = self.panel_ring == 0
+        a, d, ell = self.panel_start[ext], (self.panel_end - self.panel_start)[ext], self.panel_length[ext]
+        frac = np.asarray(_RIDGE_FRACTIONS)
+        pts = (a[:, None, :] + frac[None, :, None] * d[:, None, :]).reshape(-1, 2)
+        nrm = np.repeat(np.column_stack([-d[:, 1], d[:, 0]]) / ell[:, None], len(frac), axis=0)
+        step = np.repeat(ell, len(frac))
+        deficit = 1.0 - np.linalg.norm(self._values_by_vertex_sums(pts), axis=1)
+        order = np.argsort(-deficit)
+        offs = np.asarray(_RIDGE_OFFSETS)
+        best = 0.0
+        batch = 64
+        for i in range(0, len(order), batch):
+            k = order[i : i + batch]
+            k = k[deficit[k] > best]
+            if len(k) == 0:
+                break
+            q = pts[k, None, :] + (offs[None, :] * step[k, None])[..., None] * nrm[k, None, :]
+            h = np.linalg.norm(self._values_by_vertex_sums(q.reshape(-1, 2)), axis=1).reshape(len(k), len(offs))
+            ridge = np.minimum(deficit[k], 1.0 - h.max(axis=1))
+            best = max(best, float(ridge.max()))
+        return best
 
     def _inverse_seeds(self):
         if self._seeds is None:

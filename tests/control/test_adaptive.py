@@ -12,6 +12,7 @@ from scipy.integrate import solve_ivp
 from shapely.geometry import Point, box
 
 from mrodrake.control.adaptive import (
+    CIRCLE_DEFICIT_FACTOR,
     AdaptiveGains,
     LocalBarrierNavigationFunction,
     NavigationTask,
@@ -119,21 +120,64 @@ points_in_disk = st.tuples(st.floats(0, 0.999), st.floats(0, 2 * math.pi)).map(
 
 
 @settings(max_examples=200)
-@given(st.lists(points_in_disk, min_size=1, max_size=8), points_in_disk, points_in_disk, st.floats(1e-4, 0.2))
-def test_local_barriers_satisfy_proposition_1_per_barrier(holes, goal, start, cap):
-    """Barrier disks pairwise disjoint and off the circle band; χ_d, χ_s outside all; caps respected."""
+@given(st.lists(points_in_disk, min_size=1, max_size=8), points_in_disk, points_in_disk, st.floats(1e-4, 0.2),
+       st.sampled_from([1.0, 0.999, 0.95]))
+def test_local_barriers_satisfy_proposition_1_per_barrier(holes, goal, start, cap, rho0):
+    """Barrier disks pairwise disjoint and off the band of the circle of radius ρ₀ (inside it, or wholly outside
+    it for b_ℓ beyond ρ₀); χ_d, χ_s outside all; caps respected."""
     b = np.array(holes)
     dist = np.linalg.norm(b[:, None] - b[None], axis=-1)
     assume(np.all(dist[np.triu_indices(len(b), 1)] > 1e-9))
     assume(np.min(np.linalg.norm(b - goal, axis=1)) > 1e-9 and np.min(np.linalg.norm(b - start, axis=1)) > 1e-9)
-    taus = local_barriers(goal, b, [start], rho_cap=cap, tau_cap=cap**2)
+    assume(goal @ goal < rho0**2 and start @ start < rho0**2)
+    nb = np.linalg.norm(b, axis=1)
+    assume(np.all(np.abs(nb - rho0) > 1e-9))
+    taus = local_barriers(goal, b, [start], rho_cap=cap, tau_cap=cap**2, rho0=rho0)
     assert np.all(taus > 0) and np.all(taus <= cap**2 * (1 + 1e-12))
     rho = np.sqrt(taus[1:])
     for i, j in zip(*np.triu_indices(len(b), 1)):
         assert rho[i] + rho[j] < dist[i, j]
-    assert np.all(np.linalg.norm(b, axis=1) + rho < math.sqrt(1 - taus[0]))
+    inner = nb < rho0
+    assert np.all(nb[inner] + rho[inner] < math.sqrt(rho0**2 - taus[0]))
+    assert np.all(nb[~inner] - rho[~inner] > rho0)
     for p in (goal, start):
-        assert 1 - p @ p > taus[0] and np.all(np.sum((b - p) ** 2, axis=1) > taus[1:])
+        assert rho0**2 - p @ p > taus[0] and np.all(np.sum((b - p) ** 2, axis=1) > taus[1:])
+
+
+def test_goal_or_start_beyond_the_circle_barrier_is_rejected():
+    b = np.array([[0.2, 0.0]])
+    with pytest.raises(ValueError, match="circle barrier"):
+        local_barriers(np.array([0.0, 0.985]), b, rho_cap=0.1, tau_cap=0.01, rho0=0.98)
+    with pytest.raises(ValueError, match="circle barrier"):
+        local_barriers(np.array([0.0, 0.5]), b, [np.array([0.99, 0.0])], rho_cap=0.1, tau_cap=0.01, rho0=0.98)
+
+
+def test_circle_barrier_blows_up_at_rho0():
+    """d_0 = ρ₀² − ‖χ‖² → 0 as ‖χ‖ → ρ₀, so φ → ∞ (property 1 of Def. 2nd-order NF on the circle of radius ρ₀).
+
+    Near the pole β_0 ≈ τ_0³ / (10 d_0³) with d_0 ≈ 2ρ₀ε at ‖χ‖ = ρ₀ − ε: ε = 1e-6 gives k2 β_0 ≈ 1.6e10 for
+    τ_0 = 0.05; φ grows monotonically along the ray (χ·∇φ > 0) and is infinite at ‖χ‖ = ρ₀."""
+    rho0 = 0.97
+    nf = LocalBarrierNavigationFunction(np.array([0.0, 0.1]), np.array([[0.3, 0.1]]), np.array([0.05, 0.01]),
+                                        0.5, 1.0, rho0)
+    u = np.array([0.6, -0.8])
+    eps = np.array([1e-2, 1e-3, 1e-4, 1e-5, 1e-6])
+    vals = []
+    for e in eps:
+        v, g, _ = nf.evaluate((rho0 - e) * u)
+        vals.append(v)
+        assert g @ u > 0.0
+    assert np.all(np.diff(vals) > 0.0) and vals[-1] > 1e9
+    with np.errstate(divide="ignore", invalid="ignore"):
+        assert nf.evaluate(rho0 * u)[0] == math.inf  # the pole: d_0 = 0
+
+
+def test_task_uses_the_maps_circle_deficit(room_map):
+    """NavigationTask.build sets ρ₀ = 1 − κ δ_max from the map; objects without circle_deficit give ρ₀ = 1."""
+    assert room_map.circle_deficit > 0.0
+    task = make_task(room_map)
+    assert task.nf.rho0 == pytest.approx(1.0 - CIRCLE_DEFICIT_FACTOR * room_map.circle_deficit, abs=1e-15)
+    assert task.nf.rho0 < 1.0
 
 
 def test_local_barrier_phi_reduces_to_the_papers_phi_for_equal_taus():
@@ -147,9 +191,10 @@ def test_local_barrier_phi_reduces_to_the_papers_phi_for_equal_taus():
             np.testing.assert_allclose(a, c, rtol=1e-12, atol=1e-12)
 
 
-def test_local_barrier_phi_derivatives_match_finite_differences():
+@pytest.mark.parametrize("rho0", [1.0, 0.97])
+def test_local_barrier_phi_derivatives_match_finite_differences(rho0):
     b, goal = np.array([[0.3, 0.1], [-0.4, 0.2]]), np.array([0.0, -0.5])
-    nf = LocalBarrierNavigationFunction(goal, b, np.array([0.05, 0.02, 0.03]), 0.5, 1.0)
+    nf = LocalBarrierNavigationFunction(goal, b, np.array([0.05, 0.02, 0.03]), 0.5, 1.0, rho0)
     h = 1e-6
     for chi in (np.array([0.35, 0.15]), np.array([-0.3, 0.25]), np.array([0.0, 0.95]), np.array([0.1, 0.1])):
         v, g, H = nf.evaluate(chi)
