@@ -507,29 +507,35 @@ def cp_object(name: str, objects) -> str:
     raise ValueError(f"no object in coupled plant name {name!r}")
 
 
+def load_plan(scenario: Scenario, path):
+    """A plan.json for ``scenario``, verified (TS rules, NBA acceptance); user errors name the file."""
+    from mrodrake.planning.plan import Plan, PlanVerificationError, task_nba
+
+    path = Path(path)
+    if not path.is_file():
+        raise UserError(f"--plan: file '{path}' not found")
+    ts = TransitionSystem(scenario)
+    plan = Plan.from_json(path.read_text(encoding="utf-8"), ts, source=str(path))
+    formula, nba = task_nba(scenario, ts)
+    try:
+        plan.verify(ts, nba, formula)
+    except PlanVerificationError as exc:
+        raise UserError(f"{path}: plan does not verify: {exc}") from None
+    return plan
+
+
 def run_mission(scenario, plan=None, planner: str = "stylus", suffix_cycles: int = 1, seed: int = 0,
                 out_dir=None, progress: Callable[[int, int], None] | None = None, **mission_options) -> MissionLog:
     """Plan (unless ``plan`` is given: a Plan or a plan.json path), simulate the prefix and ``suffix_cycles``
     suffix cycles in one diagram, write the outputs to ``out_dir`` (if given) and return the log."""
-    from mrodrake.planning.plan import Plan, plan_scenario, task_nba
+    from mrodrake.planning.plan import plan_scenario
 
     if not isinstance(scenario, Scenario):
         scenario = load_scenario(scenario)
     if plan is None:
         plan = plan_scenario(scenario, planner, seed=None if planner == "exact" else seed)
     elif not hasattr(plan, "steps"):
-        path = Path(plan)
-        if not path.is_file():
-            raise UserError(f"--plan: file '{path}' not found")
-        ts = TransitionSystem(scenario)
-        plan = Plan.from_json(path.read_text(encoding="utf-8"), ts, source=str(path))
-        formula, nba = task_nba(scenario, ts)
-        from mrodrake.planning.plan import PlanVerificationError
-
-        try:
-            plan.verify(ts, nba, formula)
-        except PlanVerificationError as exc:
-            raise UserError(f"{path}: plan does not verify: {exc}") from None
+        plan = load_plan(scenario, plan)
     mission = Mission(scenario, plan, suffix_cycles=suffix_cycles, seed=seed, **mission_options)
     log = mission.run(progress)
     if out_dir is not None:

@@ -33,10 +33,9 @@ def add_subparser(subparsers) -> argparse.ArgumentParser:
 
 def run(args: argparse.Namespace) -> int:
     from mrodrake.errors import UserError
-    from mrodrake.planning.plan import Plan, PlanVerificationError, plan_scenario, task_nba
+    from mrodrake.planning.plan import plan_scenario
     from mrodrake.scenario import load_scenario
-    from mrodrake.systems.mission import Mission
-    from mrodrake.ts import TransitionSystem
+    from mrodrake.systems.mission import Mission, load_plan
 
     if args.suffix_cycles < 0:
         raise UserError(f"--suffix-cycles: must be >= 0, got {args.suffix_cycles}")
@@ -44,16 +43,7 @@ def run(args: argparse.Namespace) -> int:
     out = Path(args.out) if args.out else Path("out") / scenario.name
     t0 = time.perf_counter()
     if args.plan:
-        path = Path(args.plan)
-        if not path.is_file():
-            raise UserError(f"--plan: file '{path}' not found")
-        ts = TransitionSystem(scenario)
-        plan = Plan.from_json(path.read_text(encoding="utf-8"), ts, source=str(path))
-        formula, nba = task_nba(scenario, ts)
-        try:
-            plan.verify(ts, nba, formula)
-        except PlanVerificationError as exc:
-            raise UserError(f"{path}: plan does not verify: {exc}") from None
+        plan = load_plan(scenario, args.plan)
     else:
         print(f"planning {scenario.name} with {args.planner} ...", file=sys.stderr)
         plan = plan_scenario(scenario, args.planner, seed=None if args.planner == "exact" else args.seed)
