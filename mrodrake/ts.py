@@ -205,7 +205,7 @@ class TransitionSystem:
 
     def label(self, s: State) -> frozenset[str]:
         """L(s): the true atomic propositions."""
-        K, names = self.K, self.robot_names + self.object_names
+        names = self.robot_names + self.object_names
         return frozenset(f"{names[e]}_{self.region_names[k]}" for e, k in enumerate(s[: self.N + self.M]))
 
     def cost(self, s: State, t: State) -> float:
