@@ -138,7 +138,8 @@ class ControlGains:
     initial estimates; k1_local, k_v_local: k1 and k_v of the local (identity-map) law that docks at grasp
     points and backs off inside a region (mrodrake.control.local; not in the paper, whose grasps are
     abstract).  k_v_local exceeds the friction bound α = 2.5 of the paper's f_i (Section IV), so that the
-    anti-damping part of f_i cannot sustain a limit cycle around the grasp point while α̂ is still small.
+    anti-damping part of f_i cannot sustain a limit cycle around the grasp point while α̂ is still small;
+    it is per body: a robots-object team (friction bounds add up) uses k_v_local × (1 + members).
     """
 
     k1: PosNum = 0.01

@@ -156,15 +156,22 @@ class LocalBarrierNavigationFunction:
         chi = np.asarray(chi, dtype=float)
         e = chi - self.goal
         diff = chi - self.obstacles
-        d = np.concatenate([[self.rho0 * self.rho0 - chi @ chi], np.einsum("ij,ij->i", diff, diff)])
-        grad_d = np.vstack([-2.0 * chi, 2.0 * diff])
-        hess_d = np.concatenate([[-2.0], np.full(len(diff), 2.0)])
+        d = np.empty(len(diff) + 1)
+        d[0] = self.rho0 * self.rho0 - chi @ chi
+        d[1:] = diff[:, 0] * diff[:, 0] + diff[:, 1] * diff[:, 1]
+        value = self.k1 * float(e @ e)
+        grad = 2.0 * self.k1 * e
+        hess = np.diag([2.0 * self.k1, 2.0 * self.k1])
+        active = np.flatnonzero(d < self.taus)  # β = 1, β' = β'' = 0 elsewhere
+        if len(active) == 0:
+            return value, grad, hess
+        grad_d = np.vstack([-2.0 * chi, 2.0 * diff])[active]
+        hess_d = np.where(active == 0, -2.0, 2.0)
         with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-            b, db, ddb = beta(d, self.taus)
-        value = self.k1 * (e @ e) + self.k2 * float(np.sum(b - 1.0))
-        grad = 2.0 * self.k1 * e + self.k2 * (db @ grad_d)
-        hess = (2.0 * self.k1 + self.k2 * float(db @ hess_d)) * np.eye(2)
-        hess += self.k2 * (grad_d.T * ddb) @ grad_d
+            b, db, ddb = beta(d[active], self.taus[active])
+        value += self.k2 * float(np.sum(b - 1.0))
+        grad = grad + self.k2 * (db @ grad_d)
+        hess = hess + self.k2 * (float(db @ hess_d) * np.eye(2) + (grad_d.T * ddb) @ grad_d)
         return value, grad, hess
 
 

@@ -47,6 +47,7 @@ from mrodrake.control.freespace import DEFAULT_MARGIN, Disk, entity_free_space, 
 from mrodrake.control.local import PATH_CLEARANCE, disk_obstacles, local_path, local_task
 from mrodrake.errors import UserError
 from mrodrake.geometry import grasp_layout, polygon, workspace_free_space
+from mrodrake.packing import place
 from mrodrake.ts import Grasp, Navigate, Release, Transport
 
 #: Speed (m/s) under which an arrived entity counts as at rest (then parked).
@@ -59,7 +60,7 @@ GOAL_TOL = 0.25
 LEG_TOL = 0.25 * PATH_CLEARANCE
 #: Width (m) of the approach ring around a region (at most; less where walls, obstacles or other regions are
 #: closer than this plus DEFAULT_MARGIN): entering it, a navigation / transport switches to the local law.
-APPROACH = 2.0
+APPROACH = 10.0
 #: Depth (m) of the entity's ball inside the approach disk of its target region at which a navigation / transport switches to the
 #: local law for the rest of the way to its goal (a tenth of it when the entity crawls below REST_SPEED).
 SETTLE_DEPTH = 0.05
@@ -277,6 +278,10 @@ class _Failure(Exception):
     """A primitive could not be started or finished (recorded, ends the mission with ok=False)."""
 
 
+class _Defer(Exception):
+    """A grasp waits until the transports of its step have left its region (see ``Supervisor._dock_point``)."""
+
+
 # ------------------------------------------------------------------------------------------ supervisor system
 class Supervisor(LeafSystem):
     """Plan executor (module docstring).  Inputs ``state_<entity>`` ([x, ẋ] routed, robots then objects);
@@ -405,16 +410,18 @@ class Supervisor(LeafSystem):
                         out[e] = self._team_cover(j, team)
         return out
 
-    def _future_units(self, st: SupState, X: np.ndarray, k: int, movers: set[int]) -> list[float]:
-        """Radii of what the plan brings into region k later while ``movers`` stay there (single entities, or
-        a robots-object team by its covering radius), for the planned state of that stay with the most
-        such area; entities now in region k are not counted."""
+    def _future_units(self, st: SupState, X: np.ndarray, k: int, movers: set[int],
+                      stay: set[int] | None = None) -> list[float]:
+        """Radii of what the plan brings into region k later while ``stay`` (default: the movers; the object
+        of a transport, whose position the goal fixes until it is moved again) stays there (single entities,
+        or a robots-object team by its covering radius), for the planned state of that stay with the most
+        such area; entities now in region k and the movers are not counted."""
         present = set(self._in_region(X, k, set()))
         nm = self.N + self.M
         best, best_area = [], 0.0
         for spec in self.steps[max(st.step_idx, 0):]:
             regions, grasps = spec.dst[:nm], spec.dst[nm:]
-            if any(regions[e] != k for e in movers):
+            if any(regions[e] != k for e in (movers if stay is None else stay)):
                 break
             teams: dict[int, list[int]] = {}
             for i in range(self.N):
@@ -431,13 +438,23 @@ class Supervisor(LeafSystem):
                 best, best_area = units, area
         return best
 
-    def _goal(self, st: SupState, X: np.ndarray, k: int, radius: float, movers: set[int]) -> np.ndarray:
+    def _foresight(self, st: SupState, X: np.ndarray, k: int, movers: set[int], stay: set[int] | None = None):
+        """(reserved radii, future radii) for a goal in region k, from the most foresight to none: the
+        reserved team disks (:meth:`_reserve`) with the future units (:meth:`_future_units`), then with fewer
+        of them (the smallest dropped first: the large ones are the hard ones to fit later), then nothing."""
+        reserve = self._reserve(st, X, k)
+        future = sorted(self._future_units(st, X, k, movers, stay), reverse=True)
+        for n in range(len(future), -1, -1):
+            yield reserve, future[:n]
+        yield {}, []
+
+    def _goal(self, st: SupState, X: np.ndarray, k: int, radius: float, movers: set[int],
+              stay: set[int] | None = None) -> np.ndarray:
         """P_s goal in region k given the entities there (objects with their reserved team radius) and
-        leaving room for what the plan brings there later (:meth:`_future_units`); then with less foresight."""
+        leaving room for what the plan brings there later, with as much foresight as fits (:meth:`_foresight`)."""
         occupants = [e for e in self._in_region(X, k, movers)]
-        future = self._future_units(st, X, k, movers)
         why = ""
-        for override, later in ((self._reserve(st, X, k), future), (self._reserve(st, X, k), []), ({}, [])):
+        for override, later in self._foresight(st, X, k, movers, stay):
             disks = self._disks(X, set(range(len(self.entities))) - set(occupants), override)
             try:
                 return goal_point(self.scenario, k, radius, disks, seed=self.seed, future=later)
@@ -445,11 +462,116 @@ class Supervisor(LeafSystem):
                 why = why or str(exc)
         raise _Failure(why)
 
-    def _dock_point(self, st: SupState, X: np.ndarray, robot: int, j: int) -> tuple[np.ndarray, np.ndarray, float]:
+    def _arrival_goal(self, st: SupState, t: float, X: np.ndarray, k: int, radius: float,
+                      movers: set[int], stay: set[int] | None = None) -> np.ndarray | None:
+        """Goal of an arrival in region k (:meth:`_goal`); if P_s finds none, make room (:meth:`_make_room`)
+        and return None (the primitive resumes once the free robots have moved, with the joint placement's
+        goal)."""
+        goal = st.op_info.pop("room_goal", None)
+        if goal is not None:
+            return np.asarray(goal, dtype=float)
+        try:
+            return self._goal(st, X, k, radius, movers, stay)
+        except _Failure:
+            found = None if st.op_info.get("room_done_dst") else self._room_moves(st, X, k, movers, radius)
+            if found is None:
+                raise
+            self._make_room(st, t, X, k, found, "room_done_dst")
+            return None
+
+    def _free_robots(self, st: SupState, X: np.ndarray, k: int, movers: set[int]) -> list[int]:
+        """Parked robots in region k that may be moved inside it to make room: not docked, not moving, their
+        ball inside the region."""
+        reg = entity_regions(self.centers, self.radii, X[:, :2], self.region_radii, tol=1e-6)
+        return [i for i in range(self.N) if i not in movers and i not in st.docked and reg[i] == k]
+
+    def _room_moves(self, st: SupState, X: np.ndarray, k: int, movers: set[int], radius: float | None = None,
+                    keep_out: tuple | None = None):
+        """Make room in region k by moving its free robots (:meth:`_free_robots`) inside it: a joint P_s
+        placement of a new entity of ``radius`` (an arrival; then the goal is returned too) and the free
+        robots, or of the free robots that intrude into the disk ``keep_out`` = (centre, radius) (a departing
+        team's start).  The other occupants are fixed, with their reserved team disks when possible.  Returns
+        (goal or None, [(robot, spot, legs)]) with collision-free local paths taken one robot after the
+        other, or None."""
+        free = self._free_robots(st, X, k, movers)
+        if keep_out is not None:
+            kc, kr = np.asarray(keep_out[0], dtype=float), float(keep_out[1])
+            free = [i for i in free if math.hypot(*(X[i, :2] - kc)) < kr + self.radii[i] + 0.5 * self.scenario.layout.spacing]
+        if not free:
+            return None
+        c = self.centers[k]
+        fixed = [e for e in self._in_region(X, k, movers) if e not in free]
+        new = ([float(radius)] if radius is not None else []) + [float(self.radii[i]) for i in free]
+        for override in (self._reserve(st, X, k), {}):
+            fc = [X[e, :2] - c for e in fixed]
+            fr = [float(override.get(e, self.radii[e])) for e in fixed]
+            if keep_out is not None:
+                fc.append(kc - c)
+                fr.append(kr)
+            sol = place(self.region_radii[k], np.array(fc).reshape(-1, 2), fr, new, seed=self.seed,
+                        margin=self.scenario.layout.spacing)
+            if sol is None:
+                continue
+            spots = c + sol[len(new) - len(free):]
+            goal = c + sol[0] if radius is not None else None
+            for order in itertools.islice(itertools.permutations(range(len(free))), 24):
+                Xs, moves = X.copy(), []
+                try:
+                    for m in order:
+                        i = free[m]
+                        if math.hypot(*(spots[m] - X[i, :2])) > self.dock_tol:
+                            moves.append((i, spots[m], self._local_path(Xs, i, k, spots[m])))
+                        Xs[i, :2] = spots[m]
+                except ValueError:
+                    continue
+                return (goal, moves) if moves else None
+        return None
+
+    def _make_room(self, st: SupState, t: float, X: np.ndarray, k: int, found, flag: str) -> None:
+        """Start the moves ``found`` by :meth:`_room_moves` (phase ``room``); the current primitive then resumes
+        from the phase it was in, with the joint placement's goal for an arrival and ``flag`` set in its
+        op_info (each of departure / arrival makes room at most once)."""
+        goal, moves = found
+        keep = {key: v for key, v in st.op_info.items() if key.startswith("room_done")}
+        st.op_info = keep | {"room": list(moves), "room_goal": goal, "resume": st.phase, "room_k": k, flag: True}
+        st.phase = "room"
+        self._next_room_move(st, t, X)
+
+    def _next_room_move(self, st: SupState, t: float, X: np.ndarray) -> None:
+        info = st.op_info
+        robot, spot, legs = info["room"].pop(0)
+        k = info["room_k"]
+        self._event(st, kind="room", t_start=t, t_end=t, step=st.op.step.index, plan_step=st.op.step.plan_step,
+                    action=self.ts.format_action(st.op.action, "names"), entities=self.robots[robot],
+                    from_region=self.scenario.region_names[k], to_region=self.scenario.region_names[k], ok=True,
+                    propositions="", nba_states="", detail=f"{self.robots[robot]} moves inside "
+                    f"{self.scenario.region_names[k]} to ({spot[0]:.2f}, {spot[1]:.2f}) to make room")
+        self._start_local_motion(st, t, X, kind="room", robot=robot, k=k, goal=spot, legs=legs)
+        st.phase = "room"
+
+    def _room_phase(self, st: SupState, t: float, X: np.ndarray) -> bool:
+        """Progress the make-room moves; True once they are done (the primitive then resumes)."""
+        if not self._wait_motion(st, t, X):
+            return False
+        if st.op_info["room"]:
+            self._next_room_move(st, t, X)
+            return False
+        st.phase = st.op_info["resume"]
+        st.op_info = {key: v for key, v in st.op_info.items() if key == "room_goal" or key.startswith("room_done")}
+        return True
+
+    def _dock_point(self, st: SupState, X: np.ndarray, robot: int, j: int,
+                    defer: bool = False) -> tuple[np.ndarray, np.ndarray, float]:
         """Grasp point of ``robot`` next to object j, the local path to it and the growth of the region the
         path may use: the team layout (grasp_layout of the next transport's team) rotated so that the point
         is free, inside the region and reachable inside it (else through the approach ring, if
-        :meth:`_excursion_ok`); robots already docked at j fix the rotation when possible."""
+        :meth:`_excursion_ok`); robots already docked at j fix the rotation when possible.
+
+        Points are taken in tiers: clear of the reserved team disks of the other objects in the region
+        (:meth:`_reserve`), then clear of the covering disks of the teams that still leave the region in this
+        step (:meth:`_departing`), then any.  With ``defer`` and a later transport of this step departing
+        from the region, a point of the last tier raises :class:`_Defer` instead (the grasp waits until
+        the team has left: a docked robot inside its covering disk would block its start)."""
         team = self._next_team(st, j, robot)
         lay = grasp_layout(self.radii[self.N + j], [self.radii[i] for i in team], self.scenario.layout.grasp_gap)
         slot = team.index(robot)
@@ -468,22 +590,35 @@ class Supervisor(LeafSystem):
             angles.append(rot)
         angles += list(np.linspace(0.0, 2.0 * math.pi, 72, endpoint=False))
         why = "no free grasp point inside the region"
-        candidates = []
+        reserved = [(X[e, :2], rad) for e, rad in self._reserve(st, X, k).items() if e != self.N + j]
+        departing = [(X[self.N + jj, :2], rad) for jj, rad in self._departing(st, k) if jj != j]
+        tiers: list[list[np.ndarray]] = [[], [], []]
         for rot in angles:
             q = xo + lay.distance * np.array([math.cos(base + rot), math.sin(base + rot)])
             if math.hypot(*(q - self.centers[k])) + r + 0.5 * spacing > self.region_radii[k]:
                 continue
-            if all(math.hypot(*(q - X[e, :2])) >= r + self.radii[e] + spacing for e in others):
-                candidates.append(q)
+            if not all(math.hypot(*(q - X[e, :2])) >= r + self.radii[e] + spacing for e in others):
+                continue
+            clear_dep = all(math.hypot(*(q - c)) >= rad + r + spacing for c, rad in departing)
+            clear_res = clear_dep and all(math.hypot(*(q - c)) >= rad + r + spacing for c, rad in reserved)
+            tiers[0 if clear_res else (1 if clear_dep else 2)].append(q)
         extras = [0.0] + ([float(self.approach[k])] if self.approach[k] > 0 and self._excursion_ok(st, X, robot)
                           else [])
-        for extra in extras:
-            for q in candidates:
-                try:
-                    return q, self._local_path(X, robot, k, q, extra), extra
-                except ValueError as exc:
-                    why = str(exc)
+        for tier, candidates in enumerate(tiers):
+            if tier == 2 and defer and departing:
+                raise _Defer()
+            for extra in extras:
+                for q in candidates:
+                    try:
+                        return q, self._local_path(X, robot, k, q, extra), extra
+                    except ValueError as exc:
+                        why = str(exc)
         raise _Failure(f"no reachable grasp point for {self.robots[robot]} at {self.objects[j]} ({why})")
+
+    def _departing(self, st: SupState, k: int) -> list[tuple[int, float]]:
+        """(object, team covering radius) of the transports still to run in this step that leave region k."""
+        return [(op.action.obj, self._team_cover(op.action.obj, op.action.team)) for op in st.ops
+                if op.kind == "transport" and op.action.src == k]
 
     def _excursion_ok(self, st: SupState, X: np.ndarray, robot: int) -> bool:
         """Whether ``robot`` may leave its region for a moment while docking (through the approach ring,
@@ -675,7 +810,9 @@ class Supervisor(LeafSystem):
         c, R, centers, radii = self._local_world(X, e, info["radius"], k, team, extra)
         ctrl = self.scenario.control
         try:
-            gains = replace(AdaptiveGains.from_scenario(ctrl), k_v=ctrl.k_v_local)
+            # a team of n robots and its object has n + 1 bodies whose friction bounds add up (α_A = Σ α):
+            # k_v_local per body keeps the velocity loop damped (tests/control/test_local.py)
+            gains = replace(AdaptiveGains.from_scenario(ctrl), k_v=ctrl.k_v_local * (1 + len(team)))
             return local_task(info["legs"][info["leg"]], centers, radii, c, R, gains,
                               k1=ctrl.k1_local, k2=ctrl.k2, start=X[e, :2], cf=max(1, len(team)),
                               label=f"{self.entities[e]} {info['kind']} leg {info['leg'] + 1}/{len(info['legs'])}")
@@ -733,7 +870,7 @@ class Supervisor(LeafSystem):
         if math.hypot(*(X[info["entity"], :2] - legs[info["leg"]])) <= LEG_TOL:
             info["leg"] += 1
             task = self._local_leg_task(st, X)
-            if info["kind"] in ("dock", "backoff"):
+            if info["kind"] in ("dock", "backoff", "room"):
                 info["task"] = task
             st.tasks[info["controller"]] = task
 
@@ -753,7 +890,7 @@ class Supervisor(LeafSystem):
             return to_goal <= self.dock_tol
         margin = 0.5 * self.scenario.layout.spacing
         depth = self.region_radii[k] - math.hypot(*(x - self.centers[k])) - info["radius"]
-        if info["kind"] == "backoff":
+        if info["kind"] in ("backoff", "room"):
             return to_goal <= self.dock_tol
         return depth >= margin or (depth > 0.0 and to_goal <= self.goal_tol)
 
@@ -798,9 +935,13 @@ class Supervisor(LeafSystem):
     def _run_op(self, st: SupState, t: float, X: np.ndarray) -> bool:
         """Progress the current primitive; True when it is complete."""
         op, a = st.op, st.op.action
+        if st.phase == "room" and not self._room_phase(st, t, X):
+            return False
         if op.kind == "navigate":
             if st.phase == "start":
-                goal = self._goal(st, X, a.dst, self.radii[a.robot], {a.robot})
+                goal = self._arrival_goal(st, t, X, a.dst, self.radii[a.robot], {a.robot})
+                if goal is None:
+                    return False
                 self._start_motion(st, t, X, kind="navigate", entity=a.robot, team=(), radius=self.radii[a.robot],
                                    src=a.src, dst=a.dst, goal=goal, plant=self.robots[a.robot],
                                    controller=f"nav_{self.robots[a.robot]}")
@@ -811,7 +952,16 @@ class Supervisor(LeafSystem):
             return False
         if op.kind == "grasp":
             if st.phase == "start":
-                q, legs, extra = self._dock_point(st, X, a.robot, a.obj)
+                try:
+                    q, legs, extra = self._dock_point(st, X, a.robot, a.obj, defer=True)
+                except _Defer:
+                    st.ops = st.ops + (op,)
+                    self._event(st, kind="order", t_start=t, t_end=t, step=op.step.index,
+                                plan_step=op.step.plan_step, action=self.ts.format_action(a, "names"),
+                                entities="", from_region="", to_region="", ok=True, propositions="",
+                                nba_states="", detail="grasp deferred until the transports leaving its region "
+                                "have left (no grasp point outside their covering disks)")
+                    return True
                 k = op.step.src[self.N + a.obj]
                 self._start_local_motion(st, t, X, kind="dock", robot=a.robot, k=k, goal=q, legs=legs, extra=extra)
                 return False
@@ -847,8 +997,7 @@ class Supervisor(LeafSystem):
             if st.phase == "backoff":
                 k = op.step.src[self.N + a.obj]
                 found, why = None, "P_s found no placement"
-                future = self._future_units(st, X, k, {a.robot})
-                for override, later in ((self._reserve(st, X, k), future), (self._reserve(st, X, k), []), ({}, [])):
+                for override, later in self._foresight(st, X, k, {a.robot}):
                     occupants = self._in_region(X, k, {a.robot})
                     disks = self._disks(X, set(range(len(self.entities))) - set(occupants), override)
                     try:
@@ -891,7 +1040,16 @@ class Supervisor(LeafSystem):
             offsets = np.asarray(st.sync[name].offsets, dtype=float)
             radius = max(float(self.radii[self.N + j]),
                          max(float(np.hypot(*offsets[m])) + self.radii[i] for m, i in enumerate(team)))
-            goal = self._goal(st, X, a.dst, radius, {self.N + j, *team})
+            movers = {self.N + j, *team}
+            xo = X[self.N + j, :2]
+            found = None if st.op_info.get("room_done_src") else self._room_moves(st, X, a.src, movers,
+                                                                                   keep_out=(xo, radius))
+            if found is not None:
+                self._make_room(st, t, X, a.src, found, "room_done_src")
+                return False
+            goal = self._arrival_goal(st, t, X, a.dst, radius, movers, stay={self.N + j})
+            if goal is None:
+                return False
             self._start_motion(st, t, X, kind="transport", entity=self.N + j, team=team, radius=radius, src=a.src,
                                dst=a.dst, goal=goal, plant=name, controller=name + "_ctrl", offsets=offsets)
             return False

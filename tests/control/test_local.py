@@ -177,3 +177,19 @@ def test_weak_velocity_gain_does_not_settle_at_the_worst_friction_phase():
     X, _ = _closed_loop([task], start, 1.0, 1.25, 120.0)
     speed = np.linalg.norm(X[2:4], axis=0)
     assert speed[-200:].max() > 0.05
+
+
+def test_team_velocity_gain_scales_with_its_bodies():
+    """A robots-object team (object + 2 robots: masses add up to 2.25, friction bounds to 3 x 2 x 1.25 = 7.5)
+    at the worst friction phase: k_v_local = 4 per robot leaves it oscillating (0.7 m/s, 0.25 m off after
+    120 s); the supervisor's k_v_local x (1 + members) = 12 > 7.5 settles it."""
+    goal = np.full(2, -math.pi / 2.0)
+    start = goal + np.array([-2.0, 0.5])
+    out = {}
+    for kv in (4.0, 12.0):
+        task = local_task(goal, np.zeros((0, 2)), np.zeros(0), goal, 10.0, AdaptiveGains(k_v=kv), k1=0.25,
+                          k2=5.0, start=start, cf=2)
+        X, _ = _closed_loop([task], start, 2.25, 3.75, 120.0)
+        out[kv] = (np.linalg.norm(X[:2, -1] - goal), np.linalg.norm(X[2:4], axis=0)[-200:].max())
+    assert out[4.0][1] > 0.05
+    assert out[12.0][0] < 0.03 and out[12.0][1] < 0.05
