@@ -65,5 +65,5 @@ def run(what: str, args=None) -> int:
     elif what == "run":
         from mrodrake.systems.bench_run import run_mission_benchmark
 
-        run_mission_benchmark(sys.stdout)
+        run_mission_benchmark(sys.stdout, scenario_path=getattr(args, "scenario", None))
     return 0

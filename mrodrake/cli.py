@@ -119,8 +119,10 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("bench", help="benchmarks (not tests)", description="Run a benchmark and print a table: "
                        "ts (TS construction), ltl (LTL->NBA vs Spot), plan (planners), control (map and one "
-                       "navigation), replay (HTML replay), run (whole case-I mission).")
+                       "navigation), replay (HTML replay), run (whole mission; case I unless --scenario).")
     p.add_argument("what", choices=["ts", "ltl", "plan", "control", "replay", "run"], help="what to benchmark")
+    p.add_argument("--scenario", metavar="FILE", default=None,
+                   help="scenario of `bench run` (default: scenarios/case_study_1.yaml)")
     p.set_defaults(func=_cmd_bench)
     return parser
 

@@ -1,4 +1,5 @@
-"""Whole-mission test on case study I (prefix + one suffix cycle), recomputed from the written CSV files."""
+"""Whole-mission tests on case studies I and II (prefix + one suffix cycle), recomputed from the written CSV
+files.  Case II (4 robots, 3 objects in 4 m regions) also exercises deferred grasps and make-room moves."""
 
 from pathlib import Path
 
@@ -13,15 +14,15 @@ from mrodrake.systems.supervisor import advance_run, entity_regions, label_of
 ROOT = Path(__file__).resolve().parents[2]
 
 
-@pytest.fixture(scope="module")
-def mission(tmp_path_factory):
+@pytest.fixture(scope="module", params=["case_study_1", "case_study_2"])
+def mission(request, tmp_path_factory):
     from mrodrake.planning.plan import plan_scenario
     from mrodrake.scenario import load_scenario
     from mrodrake.systems.mission import run_mission
 
-    scn = load_scenario(ROOT / "scenarios" / "case_study_1.yaml")
+    scn = load_scenario(ROOT / "scenarios" / f"{request.param}.yaml")
     plan = plan_scenario(scn, "stylus", seed=0)
-    out = tmp_path_factory.mktemp("case1")
+    out = tmp_path_factory.mktemp(request.param)
     log = run_mission(scn, plan=plan, suffix_cycles=1, seed=0, out_dir=out)
     return scn, plan, log, out
 
