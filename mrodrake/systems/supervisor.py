@@ -476,6 +476,8 @@ class Supervisor(LeafSystem):
             found = None if st.op_info.get("room_done_dst") else self._room_moves(st, X, k, movers, radius)
             if found is None:
                 raise
+            if not found[1]:  # the joint placement leaves every free robot where it is
+                return found[0]
             self._make_room(st, t, X, k, found, "room_done_dst")
             return None
 
@@ -492,7 +494,7 @@ class Supervisor(LeafSystem):
         robots, or of the free robots that intrude into the disk ``keep_out`` = (centre, radius) (a departing
         team's start).  The other occupants are fixed, with their reserved team disks when possible.  Returns
         (goal or None, [(robot, spot, legs)]) with collision-free local paths taken one robot after the
-        other, or None."""
+        other (no moves only with a goal), or None."""
         free = self._free_robots(st, X, k, movers)
         if keep_out is not None:
             kc, kr = np.asarray(keep_out[0], dtype=float), float(keep_out[1])
@@ -524,7 +526,7 @@ class Supervisor(LeafSystem):
                         Xs[i, :2] = spots[m]
                 except ValueError:
                     continue
-                return (goal, moves) if moves else None
+                return (goal, moves) if moves or goal is not None else None
         return None
 
     def _make_room(self, st: SupState, t: float, X: np.ndarray, k: int, found, flag: str) -> None:
