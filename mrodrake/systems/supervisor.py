@@ -498,7 +498,8 @@ class Supervisor(LeafSystem):
         free = self._free_robots(st, X, k, movers)
         if keep_out is not None:
             kc, kr = np.asarray(keep_out[0], dtype=float), float(keep_out[1])
-            free = [i for i in free if math.hypot(*(X[i, :2] - kc)) < kr + self.radii[i] + 0.5 * self.scenario.layout.spacing]
+            reach = kr + 0.5 * self.scenario.layout.spacing
+            free = [i for i in free if math.hypot(*(X[i, :2] - kc)) < reach + self.radii[i]]
         if not free:
             return None
         c = self.centers[k]
