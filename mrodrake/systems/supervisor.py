@@ -503,7 +503,7 @@ class Supervisor(LeafSystem):
         if not free:
             return None
         c = self.centers[k]
-        fixed = [e for e in self._in_region(X, k, movers) if e not in free]
+        fixed = [e for e in self._in_region(X, k, set()) if e not in free]  # movers inside stay put meanwhile
         new = ([float(radius)] if radius is not None else []) + [float(self.radii[i]) for i in free]
         for override in (self._reserve(st, X, k), {}):
             fc = [X[e, :2] - c for e in fixed]
@@ -570,9 +570,10 @@ class Supervisor(LeafSystem):
         is free, inside the region and reachable inside it (else through the approach ring, if
         :meth:`_excursion_ok`); robots already docked at j fix the rotation when possible.
 
-        Points are taken in tiers: clear of the reserved team disks of the other objects in the region
-        (:meth:`_reserve`), then clear of the covering disks of the teams that still leave the region in this
-        step (:meth:`_departing`), then any.  With ``defer`` and a later transport of this step departing
+        Points are taken in tiers: the rotations that leave the slots of the teammates still to dock free
+        and are clear of the reserved team disks of the other objects in the region (:meth:`_reserve`), then
+        those clear of the covering disks of the teams that still leave the region in this step
+        (:meth:`_departing`) with the teammates' slots free, then without them, then any.  With ``defer`` and a later transport of this step departing
         from the region, a point of the last tier raises :class:`_Defer` instead (the grasp waits until
         the team has left: a docked robot inside its covering disk would block its start)."""
         team = self._next_team(st, j, robot)
@@ -595,20 +596,29 @@ class Supervisor(LeafSystem):
         why = "no free grasp point inside the region"
         reserved = [(X[e, :2], rad) for e, rad in self._reserve(st, X, k).items() if e != self.N + j]
         departing = [(X[self.N + jj, :2], rad) for jj, rad in self._departing(st, k) if jj != j]
-        tiers: list[list[np.ndarray]] = [[], [], []]
+        waiting = [m for m, i in enumerate(team) if i != robot and i not in docked]  # slots still to be taken
+        fixed = [e for e in others if e not in team]
+
+        def free_at(p, rad, entities) -> bool:
+            return (math.hypot(*(p - self.centers[k])) + rad + 0.5 * spacing <= self.region_radii[k]
+                    and all(math.hypot(*(p - X[e, :2])) >= rad + self.radii[e] + spacing for e in entities))
+
+        tiers: list[list[np.ndarray]] = [[], [], [], []]
         for rot in angles:
             q = xo + lay.distance * np.array([math.cos(base + rot), math.sin(base + rot)])
-            if math.hypot(*(q - self.centers[k])) + r + 0.5 * spacing > self.region_radii[k]:
+            if not free_at(q, r, others):
                 continue
-            if not all(math.hypot(*(q - X[e, :2])) >= r + self.radii[e] + spacing for e in others):
-                continue
+            cr, sr = math.cos(rot), math.sin(rot)
+            team_ok = all(free_at(xo + np.array([cr * lay.offsets[m, 0] - sr * lay.offsets[m, 1],
+                                                 sr * lay.offsets[m, 0] + cr * lay.offsets[m, 1]]),
+                                  self.radii[team[m]], fixed) for m in waiting)
             clear_dep = all(math.hypot(*(q - c)) >= rad + r + spacing for c, rad in departing)
             clear_res = clear_dep and all(math.hypot(*(q - c)) >= rad + r + spacing for c, rad in reserved)
-            tiers[0 if clear_res else (1 if clear_dep else 2)].append(q)
+            tiers[(0 if clear_res else 1) if team_ok and clear_dep else (2 if clear_dep else 3)].append(q)
         extras = [0.0] + ([float(self.approach[k])] if self.approach[k] > 0 and self._excursion_ok(st, X, robot)
                           else [])
         for tier, candidates in enumerate(tiers):
-            if tier == 2 and defer and departing:
+            if tier == 3 and defer and departing:
                 raise _Defer()
             for extra in extras:
                 for q in candidates:
@@ -965,6 +975,17 @@ class Supervisor(LeafSystem):
                                 nba_states="", detail="grasp deferred until the transports leaving its region "
                                 "have left (no grasp point outside their covering disks)")
                     return True
+                except _Failure:
+                    # free robots (teammates not docked yet included) inside the covering disk of the team
+                    # being formed move away first
+                    k = op.step.src[self.N + a.obj]
+                    cover = self._team_cover(a.obj, self._next_team(st, a.obj, a.robot))
+                    found = None if st.op_info.get("room_done_dock") else self._room_moves(
+                        st, X, k, {a.robot, self.N + a.obj}, keep_out=(X[self.N + a.obj, :2], cover))
+                    if found is None:
+                        raise
+                    self._make_room(st, t, X, k, found, "room_done_dock")
+                    return False
                 k = op.step.src[self.N + a.obj]
                 self._start_local_motion(st, t, X, kind="dock", robot=a.robot, k=k, goal=q, legs=legs, extra=extra)
                 return False

@@ -110,3 +110,31 @@ def test_make_room_moves_a_free_robot_for_an_arriving_team(setup):
         assert math.hypot(*(Y[e, :2] - goal)) >= radius + sup.radii[e] + gap - 1e-6
         assert math.hypot(*(Y[e, :2] - c3)) + sup.radii[e] <= sup.region_radii[2] + 1e-9
     assert math.hypot(*(goal - c3)) + radius <= sup.region_radii[2] - gap + 1e-6
+
+
+def test_make_room_clears_the_disk_of_a_team_being_formed(setup):
+    """Case II with the seed-1 plan, step 8 (seen in a run): r2 must dock at o3 in p3, but r1 (docked at o1)
+    and r3 (just arrived, not docked yet) leave no free grasp point; r3 is moved out of the covering disk of
+    o3's team r2+r3+r4, after which r2 finds a grasp point."""
+    scn, sup = setup
+    from mrodrake.systems.supervisor import _Failure
+
+    c3 = sup.centers[2]
+    X = np.zeros((7, 4))
+    for e, rel in ((R1, (-0.04, -1.45)), (R2, (-1.22, 2.0)), (R3, (2.12, -1.43)), (O1, (-1.11, -1.44)),
+                   (6, (1.05, -1.42))):
+        X[e, :2] = c3 + np.array(rel)
+    X[R4, :2], X[O2, :2] = sup.centers[0] + (2.17, 0.74), sup.centers[0] + (-1.22, 1.49)
+    st = SupState()
+    st.step_idx = 0
+    st.docked = {R1: 0}
+    with pytest.raises(_Failure):
+        sup._dock_point(st, X, R2, 2)
+    cover = sup._team_cover(2, (R2, R3, R4))
+    goal, moves = sup._room_moves(st, X, 2, {R2, 6}, keep_out=(X[6, :2], cover))
+    assert goal is None and [m[0] for m in moves] == [R3]
+    Y = X.copy()
+    Y[R3, :2] = moves[0][1]
+    assert math.hypot(*(Y[R3, :2] - X[6, :2])) >= cover + sup.radii[R3] + scn.layout.spacing - 1e-6
+    q, legs, _ = sup._dock_point(st, Y, R2, 2)
+    assert math.hypot(*(q - X[6, :2])) == pytest.approx(1.05, abs=1e-6)
