@@ -40,7 +40,7 @@ from typing import NamedTuple, Sequence
 
 import numpy as np
 
-from mrodrake.control.navfunc import TAU_FRACTION, beta, desired_velocity
+from mrodrake.control.navfunc import TAU_FRACTION, desired_velocity, phi_terms
 
 #: Default speed bound v_max (m/s) of the desired velocity (module docstring).
 V_MAX = 2.0
@@ -153,26 +153,8 @@ class LocalBarrierNavigationFunction:
 
     def evaluate(self, chi) -> tuple[float, np.ndarray, np.ndarray]:
         """(φ, ∇φ, ∇²φ) at χ (shape (2,))."""
-        chi = np.asarray(chi, dtype=float)
-        e = chi - self.goal
-        diff = chi - self.obstacles
-        d = np.empty(len(diff) + 1)
-        d[0] = self.rho0 * self.rho0 - chi @ chi
-        d[1:] = diff[:, 0] * diff[:, 0] + diff[:, 1] * diff[:, 1]
-        value = self.k1 * float(e @ e)
-        grad = 2.0 * self.k1 * e
-        hess = np.diag([2.0 * self.k1, 2.0 * self.k1])
-        active = np.flatnonzero(d < self.taus)  # β = 1, β' = β'' = 0 elsewhere
-        if len(active) == 0:
-            return value, grad, hess
-        grad_d = np.vstack([-2.0 * chi, 2.0 * diff])[active]
-        hess_d = np.where(active == 0, -2.0, 2.0)
-        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-            b, db, ddb = beta(d[active], self.taus[active])
-        value += self.k2 * float(np.sum(b - 1.0))
-        grad = grad + self.k2 * (db @ grad_d)
-        hess = hess + self.k2 * (float(db @ hess_d) * np.eye(2) + (grad_d.T * ddb) @ grad_d)
-        return value, grad, hess
+        return phi_terms(np.asarray(chi, dtype=float), self.goal, self.obstacles, self.rho0, self.taus, self.k1,
+                         self.k2)
 
 
 def local_barriers(goal, obstacles, starts=(), *, rho_cap: float, tau_cap: float,

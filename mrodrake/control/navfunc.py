@@ -76,6 +76,31 @@ def select_tau(goal, obstacles, *, r_bar_cap: float = R_BAR_CAP, tau_cap: float 
     return tau, rb, rd
 
 
+def phi_terms(chi: np.ndarray, goal: np.ndarray, obstacles: np.ndarray, rho0: float, taus, k1: float,
+              k2: float) -> tuple[float, np.ndarray, np.ndarray]:
+    """(φ, ∇φ, ∇²φ) at χ with d_0 = ρ₀² − ‖χ‖², d_ℓ = ‖χ − b_ℓ‖² and region(s) of influence ``taus`` (one for
+    all, or one per barrier ℓ = 0..L); only barriers with d_ℓ < τ_ℓ contribute (β' = β'' = 0 beyond)."""
+    e = chi - goal
+    diff = chi - obstacles  # (L, 2)
+    d = np.empty(len(diff) + 1)
+    d[0] = rho0 * rho0 - chi @ chi
+    d[1:] = diff[:, 0] * diff[:, 0] + diff[:, 1] * diff[:, 1]
+    value = k1 * float(e @ e)
+    grad = 2.0 * k1 * e
+    hess = np.diag([2.0 * k1, 2.0 * k1])
+    active = np.flatnonzero(d < taus)
+    if len(active) == 0:
+        return value, grad, hess
+    grad_d = np.vstack([-2.0 * chi, 2.0 * diff])[active]
+    hess_d = np.where(active == 0, -2.0, 2.0)  # ∇²d_ℓ = hess_d I
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        b, db, ddb = beta(d[active], taus[active] if np.ndim(taus) else taus)
+    value += k2 * float(np.sum(b - 1.0))
+    grad = grad + k2 * (db @ grad_d)
+    hess = hess + k2 * (float(db @ hess_d) * np.eye(2) + (grad_d.T * ddb) @ grad_d)
+    return value, grad, hess
+
+
 @dataclass(frozen=True)
 class NavigationFunction:
     """φ of Def. 2nd-order NF for goal χ_d, point obstacles b_ℓ and the unit-circle boundary."""
@@ -106,26 +131,7 @@ class NavigationFunction:
 
     def evaluate(self, chi) -> tuple[float, np.ndarray, np.ndarray]:
         """(φ, ∇φ, ∇²φ) at χ (shape (2,)); only barriers with d_ℓ(χ) < τ contribute (β' = β'' = 0 beyond)."""
-        chi = np.asarray(chi, dtype=float)
-        e = chi - self.goal
-        diff = chi - self.obstacles  # (L, 2)
-        d = np.empty(len(diff) + 1)
-        d[0] = 1.0 - chi @ chi
-        d[1:] = diff[:, 0] * diff[:, 0] + diff[:, 1] * diff[:, 1]
-        value = self.k1 * float(e @ e)
-        grad = 2.0 * self.k1 * e
-        hess = np.diag([2.0 * self.k1, 2.0 * self.k1])
-        active = np.flatnonzero(d < self.tau)
-        if len(active) == 0:
-            return value, grad, hess
-        grad_d = np.vstack([-2.0 * chi, 2.0 * diff])[active]
-        hess_d = np.where(active == 0, -2.0, 2.0)  # ∇²d_ℓ = hess_d I
-        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-            b, db, ddb = beta(d[active], self.tau)
-        value += self.k2 * float(np.sum(b - 1.0))
-        grad = grad + self.k2 * (db @ grad_d)
-        hess = hess + self.k2 * (float(db @ hess_d) * np.eye(2) + (grad_d.T * ddb) @ grad_d)
-        return value, grad, hess
+        return phi_terms(np.asarray(chi, dtype=float), self.goal, self.obstacles, 1.0, self.tau, self.k1, self.k2)
 
     def value(self, chi) -> float:
         return self.evaluate(chi)[0]
