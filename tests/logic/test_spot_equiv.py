@@ -3,8 +3,8 @@
 import pytest
 
 from mrodrake.logic import ltl
-from mrodrake.logic.bench import load_case_study_formulas, load_dwyer_patterns
 from mrodrake.logic.buchi import NBA, translate
+from mrodrake.logic.data import load_case_study_formulas, load_dwyer_patterns
 
 spot = pytest.importorskip("spot")
 
