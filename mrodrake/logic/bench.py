@@ -12,9 +12,10 @@ import sys
 import time
 
 from mrodrake.logic import ltl
-from mrodrake.logic.buchi import NBA, translate
 from mrodrake.logic.data import load_case_study_formulas, load_dwyer_patterns
-from mrodrake.logic.spot_backend import spot_available
+from mrodrake.logic.nba import NBA
+from mrodrake.logic.spot_backend import import_spot, spot_available
+from mrodrake.logic.translate import translate
 
 __all__ = ["run_ltl_benchmark", "TARGETS"]
 
@@ -31,9 +32,7 @@ def _timed(fn, *args) -> tuple[NBA, float]:
 def run_ltl_benchmark(stream=sys.stdout) -> dict:
     """Run the benchmark, print its table to ``stream`` and return the numbers as a dict."""
     have_spot = spot_available()
-    spot = None
-    if have_spot:
-        import spot
+    spot = import_spot() if have_spot else None
     w = stream.write
     patterns = load_dwyer_patterns()
     rows = []

@@ -49,7 +49,7 @@ from pathlib import Path
 from typing import Callable, Sequence
 
 from mrodrake.errors import UserError
-from mrodrake.logic.buchi import NBA
+from mrodrake.logic.nba import NBA
 from mrodrake.ts import Action, Grasp, Navigate, Release, State, TransitionSystem, Transport
 
 FORMAT = "mrodrake.plan"
@@ -311,7 +311,7 @@ def _jsonable(x):
 # ---------------------------------------------------------------------------------------- high level
 def task_nba(scenario, ts: TransitionSystem):
     """(formula, NBA over ts.propositions) of the scenario's task."""
-    from mrodrake.logic.buchi import translate
+    from mrodrake.logic.translate import translate
     from mrodrake.logic.ltl import parse
 
     f = parse(scenario.task.formula, macros=dict(scenario.task.propositions), source="task.formula",

@@ -7,7 +7,8 @@ import pytest
 
 from mrodrake.errors import UserError
 from mrodrake.logic import cli as logic_cli
-from mrodrake.logic.buchi import NBA, translate
+from mrodrake.logic.hoa import read_hoa
+from mrodrake.logic.translate import translate
 
 
 def _parser():
@@ -35,7 +36,7 @@ def test_prints_one_hoa_automaton_per_formula_in_order():
     assert [b.splitlines()[1] for b in blocks] == ['name: "G F a"', 'name: "a U b"', 'name: "false"']
     for block, text in zip(blocks, ["G F a", "a U b", "false"]):
         assert "Acceptance: 1 Inf(0)" in block and "acc-name: Buchi" in block and "state-acc" in block
-        assert NBA.from_hoa(block) == translate(text)
+        assert read_hoa(block) == translate(text)
 
 
 def test_formula_file(tmp_path):
