@@ -37,7 +37,7 @@ JSON schema (``Plan.to_json``), version 1::
              each ACTION also has "text" (e.g. "transport o1 by r1+r3 p1->p4") and "paper"
              (Table I notation, e.g. "π1 →T_{1,3},1 π4").
 
-NBA state ids refer to ``mrodrake.logic.buchi.translate(formula)`` re-indexed onto the TS propositions.
+NBA state ids refer to ``mrodrake.logic.translate.translate(formula)`` re-indexed onto the TS propositions.
 """
 
 from __future__ import annotations
