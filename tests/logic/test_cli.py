@@ -5,6 +5,7 @@ import io
 
 import pytest
 
+from mrodrake.cli import main
 from mrodrake.errors import UserError
 from mrodrake.logic import cli as logic_cli
 from mrodrake.logic.hoa import read_hoa
@@ -87,3 +88,11 @@ def test_spot_translator_option():
     pytest.importorskip("spot")
     code, out = _run(["ltl2nba", "--translator", "spot", "G F a"])
     assert code == 0 and "HOA: v1" in out
+
+
+def test_deeply_nested_formulas_exit_cleanly(capsys):
+    assert main(["ltl2nba", "(" * 3000 + "a" + ")" * 3000]) == 0
+    assert "HOA: v1" in capsys.readouterr().out
+    assert main(["ltl2nba", "X " * 3000 + "a"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("error: formula 1:5601: formula nested deeper than 200") and "Traceback" not in err
