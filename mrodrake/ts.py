@@ -16,7 +16,9 @@ A transition s → s' is a set of simultaneous actions, one per robot (all idle 
 * a robot grasping j in s and s' moves iff j moves, to the same region;
 * object j moves (π_k →T_{A,j} π_k') only if the same non-empty team A grasps it in s and s' and
   Λ holds: Σ_{i∈A} ζ_i ≥ required power of j; a robot never switches objects in one step;
-* both states valid.
+* both states valid, and the step fits while it is executed one action at a time (:meth:`TransitionSystem.step_fits`:
+  where a region loses and gains entities in one step, everything that is in it at the start or at the end
+  fits together).
 
 Labels: ``<robot>_<region>`` / ``<object>_<region>`` true where the entity is.  Cost
 χ(s, s') = Σ_i ‖p_{k_i} − p_{k'_i}‖ + c_grasp · (number of grasps and releases).
@@ -31,6 +33,8 @@ from dataclasses import dataclass
 from typing import Iterator, Sequence, Union
 
 import numpy as np
+from scipy.sparse import csr_matrix
+from scipy.sparse.csgraph import breadth_first_order
 
 from mrodrake.geometry import grasp_layout
 from mrodrake.scenario import Scenario, entities_fit
@@ -191,6 +195,79 @@ class TransitionSystem:
         fits = self.region_fits
         return all(not radii or fits(k, radii) for k, radii in enumerate(self.region_entities(s)))
 
+    def step_fits(self, s: State, t: State) -> bool:
+        """Capacity of sequential execution: in every region that some entity leaves and some entity enters
+        in the step s → t, the units that are there at its start or at its end fit together (P_s), under the
+        grasps of s and under those of t.  The executor may then run the step's actions in any order without
+        overfilling a region (occupancy of a region during the step is a subset of that union)."""
+        N, M = self.N, self.M
+        dep, arr = set(), set()
+        for e in range(N + M):
+            if s[e] != t[e]:
+                dep.add(s[e])
+                arr.add(t[e])
+        both = dep & arr
+        if not both:
+            return True
+        return all(self._union_fits(k, s, t, g) for k in both for g in (s, t))
+
+    def _union_fits(self, k: int, s: State, t: State, grasp_state: State) -> bool:
+        N, M = self.N, self.M
+        G = grasp_state[N + M:]
+        teams: dict[int, list[int]] = {}
+        radii = []
+        for i in range(N):
+            if G[i] >= 0:
+                teams.setdefault(G[i], []).append(i)
+            elif s[i] == k or t[i] == k:
+                radii.append(self.robot_radius[i])
+        for j in range(M):
+            if s[N + j] == k or t[N + j] == k:
+                radii.append(self.covering_radius(j, tuple(teams[j])) if j in teams else self.object_radius[j])
+        return self.region_fits(k, radii)
+
+    def steps_fit(self, A: np.ndarray, B: np.ndarray) -> np.ndarray:
+        """:meth:`step_fits` of the steps A[r] → B[r] (rows of state arrays; B may be one state), vectorised:
+        per region that loses and gains entities, the union's units are encoded as one integer (free robots,
+        then per object its presence and its team), and P_s is decided once per distinct code."""
+        N, M, K = self.N, self.M, self.K
+        n = N + M
+        A = np.asarray(A, dtype=np.int64)
+        B = np.broadcast_to(np.asarray(B, dtype=np.int64), A.shape)
+        ok = np.ones(len(A), dtype=bool)
+        pow_n = 1 << np.arange(N, dtype=np.int64)
+        moved = A[:, :n] != B[:, :n]
+        dep = [(moved & (A[:, :n] == k)).any(axis=1) for k in range(K)]
+        arr = [(moved & (B[:, :n] == k)).any(axis=1) for k in range(K)]
+        for k in range(K):
+            rows = np.flatnonzero(dep[k] & arr[k])
+            if len(rows) == 0:
+                continue
+            a, b = A[rows], B[rows]
+            here = (a[:, :n] == k) | (b[:, :n] == k)
+            for G in (a[:, n:], b[:, n:]):
+                code = (here[:, :N] & (G < 0)).astype(np.int64) @ pow_n
+                shift = N
+                for j in range(M):
+                    team = (G == j).astype(np.int64) @ pow_n
+                    code |= (here[:, N + j].astype(np.int64) << shift) | (team << (shift + 1))
+                    shift += N + 1
+                codes, inv = np.unique(code, return_inverse=True)
+                fits = np.array([self._code_fits(k, int(c)) for c in codes], dtype=bool)
+                ok[rows[~fits[inv.ravel()]]] = False
+        return ok
+
+    def _code_fits(self, k: int, code: int) -> bool:
+        N = self.N
+        radii = [self.robot_radius[i] for i in range(N) if code >> i & 1]
+        shift = N
+        for j in range(self.M):
+            if code >> shift & 1:
+                team = tuple(i for i in range(N) if code >> (shift + 1 + i) & 1)
+                radii.append(self.covering_radius(j, team) if team else self.object_radius[j])
+            shift += N + 1
+        return self.region_fits(k, radii)
+
     # ------------------------------------------------------------------ labels and cost
     def label_mask(self, s: State) -> int:
         """L(s) as a bitmask over :attr:`propositions` (bit e·K + k: entity e is in region k)."""
@@ -251,6 +328,8 @@ class TransitionSystem:
                     return f"object {self.object_names[j]} moves without the same non-empty team grasping it"
                 if not self.team_power_ok(team, j):
                     return f"team {{{', '.join(self.robot_names[i] for i in team)}}} lacks the power to move {self.object_names[j]} (Λ)"
+        if not self.step_fits(s, t):
+            return "the step's arrivals do not fit next to the entities that leave the same region (P_s)"
         return None
 
     def actions(self, s: State, t: State) -> tuple[Action, ...]:
@@ -328,12 +407,12 @@ class TransitionSystem:
 
     def successor_states(self, s: State) -> Iterator[State]:
         """All s' with s → s' (implicit; never enumerates the whole TS)."""
-        valid = self.is_valid
+        valid, fits = self.is_valid, self.step_fits
         for dests, robot_opts in self.options(s):
             for choice in itertools.product(*robot_opts):
                 regions, grasps = zip(*choice)
                 t = regions + dests + grasps
-                if valid(t):
+                if valid(t) and fits(s, t):
                     yield t
 
     def successors(self, s: State) -> Iterator[tuple[State, tuple[Action, ...], float]]:
@@ -418,10 +497,23 @@ class TransitionSystem:
         arr = np.array(states, dtype=np.int16).reshape(len(states), 2 * N + M)
         tg = np.frombuffer(targets, dtype=np.int32) if len(targets) else np.zeros(0, np.int32)
         keep = tg >= 0
-        kept = np.concatenate([[0], np.cumsum(keep, dtype=np.int64)])
-        ip = kept[np.array(ends, dtype=np.int64)]
-        tg = tg[keep]
-        src = np.repeat(np.arange(len(states), dtype=np.int32), np.diff(ip))
+        src_all = np.repeat(np.arange(len(states), dtype=np.int64), np.diff(np.array(ends, dtype=np.int64)))
+        cand = np.flatnonzero(keep)
+        keep[cand] = self.steps_fit(arr[src_all[cand]], arr[tg[cand]])
+        src, tg = src_all[keep], tg[keep].astype(np.int64)
+        # steps that do not fit may have been the only way to some states: keep what the initial state reaches
+        g = csr_matrix((np.ones(len(src), dtype=np.int8), (src, tg)), shape=(len(states), len(states)))
+        order = np.sort(breadth_first_order(g, 0, directed=True, return_predecessors=False))
+        if len(order) < len(states):
+            new = np.full(len(states), -1, dtype=np.int64)
+            new[order] = np.arange(len(order))
+            ok = (new[src] >= 0) & (new[tg] >= 0)
+            src, tg = new[src[ok]], new[tg[ok]]
+            states = [states[k] for k in order]
+            arr = arr[order]
+        ip = np.zeros(len(states) + 1, dtype=np.int64)
+        np.cumsum(np.bincount(src, minlength=len(states)), out=ip[1:])
+        src, tg = src.astype(np.int32), tg.astype(np.int32)
         costs = self._edge_costs(arr, src, tg)
         index_by_state = {s: k for k, s in enumerate(states)}
         return ExplicitTS(self, arr, index_by_state, ip, tg, costs, time.perf_counter() - t0)

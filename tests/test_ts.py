@@ -81,6 +81,27 @@ def oracle_transition(ts: TransitionSystem, s, t) -> bool:
                 return False
             if sum(ts.scenario.robots[i].power for i in team) < ts.scenario.objects[j].required_power:
                 return False
+    return oracle_step_fits(ts, s, t)
+
+
+def oracle_step_fits(ts: TransitionSystem, s, t) -> bool:
+    """Sequential execution: where a region loses and gains entities in one step, all its entities of the
+    start and of the end fit together, with the teams of s and with those of t."""
+    N, M, sc = ts.N, ts.M, ts.scenario
+    for k in range(ts.K):
+        leaves = any(s[e] == k != t[e] for e in range(N + M))
+        enters = any(t[e] == k != s[e] for e in range(N + M))
+        if not (leaves and enters):
+            continue
+        for G in (s[N + M:], t[N + M:]):
+            radii = [sc.robots[i].radius for i in range(N) if k in (s[i], t[i]) and G[i] < 0]
+            for j in range(M):
+                if k in (s[N + j], t[N + j]):
+                    team = [sc.robots[i].radius for i in range(N) if G[i] == j]
+                    radii.append(grasp_layout(sc.objects[j].radius, team, sc.layout.grasp_gap).covering_radius
+                                 if team else sc.objects[j].radius)
+            if not entities_fit(sc.regions[k].radius, radii, sc.layout.spacing):
+                return False
     return True
 
 

@@ -211,10 +211,12 @@ class ControlEval(NamedTuple):
     """Everything one evaluation of the law produces (per state and estimates).
 
     ``fault`` is empty where the law is defined; otherwise it says why not (the state is past a barrier's
-    pole, i.e. outside the free set, or the map is degenerate there), u and the rates are zero, and the
-    mission ends the primitive as soon as an accepted integration step gets there (the controller system's ``fault``).
-    Zero, not NaN: Drake's error control shrinks the step forever on a NaN or infinite derivative instead
-    of reaching its minimum step size, while the jump to zero past the pole makes it reject the trial."""
+    pole, i.e. outside the free set, or the map is degenerate there), the rates are zero and u is a stiff
+    brake −:data:`FAULT_DAMPING` ẋ: finite (Drake accepts steps with a NaN error estimate and shrinks the next
+    step forever on a NaN derivative at its start), but a jump that makes an error-controlled integrator
+    reject a trial step that gets there.  A step that still *ends* there is caught by the mission's monitor,
+    which ends the primitive right after it (the controller system's ``fault``).
+    """
 
     u: np.ndarray  # entity input (2,)
     m_hat_dot: float
@@ -226,6 +228,8 @@ class ControlEval(NamedTuple):
 
 
 _ZERO2 = np.zeros(2)
+#: Damping (N s/m) of the brake applied where the law is undefined (:class:`ControlEval`).
+FAULT_DAMPING = 1e6
 
 
 @dataclass(frozen=True)
@@ -273,9 +277,9 @@ class NavigationTask:
         with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
             v_raw, vdot_raw, J, grad, phi = desired_velocity(self.pw_map, self.nf, x, xdot)
         if outside_free_set(phi):
-            return self._fault(x, "is outside the free set (past a barrier of the navigation function)")
+            return self._fault(x, xdot, "is outside the free set (past a barrier of the navigation function)")
         if not (np.all(np.isfinite(v_raw)) and np.all(np.isfinite(vdot_raw))):
-            return self._fault(x, f"is where the point-world map is degenerate (det J_H = {np.linalg.det(J):.3g}):"
+            return self._fault(x, xdot, f"is where the point-world map is degenerate (det J_H = {np.linalg.det(J):.3g}):"
                                   " the entity left the region the map resolves")
         v_d, vdot_d = saturate_velocity(v_raw, vdot_raw, self.v_max)
         e_v = xdot - v_d
@@ -283,9 +287,9 @@ class NavigationTask:
         dm, da = adaptation_rates(e_v, vdot_d, g.k_m, g.k_alpha)
         return ControlEval(u, dm, da, v_d, vdot_d, e_v)
 
-    def _fault(self, x: np.ndarray, why: str) -> ControlEval:
+    def _fault(self, x: np.ndarray, xdot: np.ndarray, why: str) -> ControlEval:
         where = f"x = ({x[0]:.4f}, {x[1]:.4f}) {why}"
-        return ControlEval(_ZERO2, 0.0, 0.0, _ZERO2, _ZERO2, _ZERO2, where)
+        return ControlEval(-FAULT_DAMPING * np.asarray(xdot, dtype=float), 0.0, 0.0, _ZERO2, _ZERO2, _ZERO2, where)
 
     def __deepcopy__(self, memo):
         """Tasks are immutable once built: Drake's abstract-value clones share them instead of copying."""

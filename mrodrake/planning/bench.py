@@ -35,6 +35,7 @@ def run_plan_benchmark(stream=sys.stdout, seeds: int = 3, horizon: float = 30.0,
     from mrodrake.planning.exact import solve_exact
     from mrodrake.planning.generate import generate_scenario
     from mrodrake.planning.plan import task_nba
+    from mrodrake.planning.semantics import relevant_mask
     from mrodrake.planning.stylus import Stylus
     from mrodrake.scenario import load_scenario
     from mrodrake.ts import TransitionSystem
@@ -51,12 +52,13 @@ def run_plan_benchmark(stream=sys.stdout, seeds: int = 3, horizon: float = 30.0,
     for name in ("case_study_1", "case_study_2"):
         sc = load_scenario(SCENARIOS / f"{name}.yaml")
         ts = TransitionSystem(sc)
-        _, nba = task_nba(sc, ts)
+        formula, nba = task_nba(sc, ts)
+        rel = relevant_mask(ts, formula)
         t0 = time.perf_counter()
-        res = solve_exact(ts, nba)
+        res = solve_exact(ts, nba, rel)
         secs = time.perf_counter() - t0
         opt = res.prefix_cost + res.suffix_cost
-        cases[name] = (ts, nba, opt)
+        cases[name] = (ts, nba, rel, opt)
         st = res.stats
         row = {"scenario": name, "cost": opt, "prefix": res.prefix_cost, "suffix": res.suffix_cost,
                "seconds": secs, **{k: st[k] for k in ("ts_states", "ts_transitions", "product_nodes",
@@ -70,9 +72,9 @@ def run_plan_benchmark(stream=sys.stdout, seeds: int = 3, horizon: float = 30.0,
     say(f"STyLuS* anytime runs of {horizon:g} s: best cost / exact optimum after t seconds")
     say(f"{'scenario':<14} {'seed':>4} {'first s':>8} {'first':>7} "
         + " ".join(f"{f'@{t:g}s':>7}" for t in marks) + f" {'iters':>8} {'nodes':>8}")
-    for name, (ts, nba, opt) in cases.items():
+    for name, (ts, nba, rel, opt) in cases.items():
         for seed in range(seeds):
-            res = Stylus(ts, nba, seed=seed).run(10**9, time_limit=horizon)
+            res = Stylus(ts, nba, rel, seed=seed).run(10**9, time_limit=horizon)
             h = res.history
             row = {"scenario": name, "seed": seed, "first_seconds": res.stats["first_plan_seconds"],
                    "first_ratio": h[0][2] / opt, "iterations": res.stats["iterations"],
@@ -91,12 +93,13 @@ def run_plan_benchmark(stream=sys.stdout, seeds: int = 3, horizon: float = 30.0,
         for seed in range(max(1, seeds - 1)):
             sc = generate_scenario(n, m, k, seed, full=True)
             ts = TransitionSystem(sc)
-            _, nba = task_nba(sc, ts)
+            formula, nba = task_nba(sc, ts)
+            rel = relevant_mask(ts, formula)
             bound = k ** (n + m) * (m + 1) ** n
             row = {"N": n, "M": m, "K": k, "seed": seed, "ts_bound": bound, "nba_states": nba.num_states}
             try:
-                first = Stylus(ts, nba, seed=seed).run(1, time_limit=generated_limit, stop_at_first=True)
-                res = Stylus(ts, nba, seed=seed).run(10**9, time_limit=generated_seconds)
+                first = Stylus(ts, nba, rel, seed=seed).run(1, time_limit=generated_limit, stop_at_first=True)
+                res = Stylus(ts, nba, rel, seed=seed).run(10**9, time_limit=generated_seconds)
                 row.update(first_seconds=first.stats["first_plan_seconds"], first_cost=first.history[0][2],
                            final_cost=res.history[-1][2], iterations=res.stats["iterations"])
                 say(f"{n:>3} {m:>3} {k:>3} {seed:>4} {bound:>13.2e} {nba.num_states:>4} "

@@ -130,8 +130,10 @@ def _path(pred: np.ndarray, src: int, dst: int) -> list[int]:
     return out[::-1]
 
 
-def solve_exact(ts: TransitionSystem, nba: NBA, progress: Callable[[str], None] | None = None) -> ExactResult:
-    """Optimal prefix-suffix plan (see the module docstring); UserError when the task is unsatisfiable."""
+def solve_exact(ts: TransitionSystem, nba: NBA, relevant: int,
+                progress: Callable[[str], None] | None = None) -> ExactResult:
+    """Optimal prefix-suffix plan on the executed-word semantics (``relevant``: the task's AP_φ mask; see the
+    module docstring); UserError when the task is unsatisfiable."""
     t0 = time.perf_counter()
     check_power(ts, nba)
     pruned = prune_nba(nba, ts)
@@ -141,7 +143,7 @@ def solve_exact(ts: TransitionSystem, nba: NBA, progress: Callable[[str], None] 
         raise UserError(f"task is unsatisfiable: the NBA ({nba.num_states} states) has no accepting cycle "
                         "whose guards a TS label can satisfy (searched the pruned NBA)")
     small = restrict_nba(pruned, useful)
-    product = Product(ts, small)
+    product = Product(ts, small, relevant)
     if progress:
         progress("building the transition system")
     ets = ts.build()

@@ -4,14 +4,16 @@ A :class:`Plan` is the TS run ``prefix (suffix)^ω`` together with the NBA run t
 The run is ``prefix + suffix + suffix + ...``: its first state is the TS's initial state (with the NBA's
 initial state), every state is reached from the one before it by one TS transition, the last prefix
 state steps to the first suffix state and the last suffix state steps back to the first suffix state;
-the trace of labels is ``labels(prefix) labels(suffix)^ω``.  Step ``k`` (1-based) goes from run state
-``k`` to run state ``k + 1``; the prefix has ``len(prefix)`` steps (the last one enters the suffix) and
-the suffix ``len(suffix)`` steps (the last one closes the cycle).  Costs are Σχ over those steps.
+Step ``k`` (1-based) goes from run state ``k`` to run state ``k + 1``; the prefix has ``len(prefix)`` steps
+(the last one enters the suffix) and the suffix ``len(suffix)`` steps (the last one closes the cycle).  Costs
+are Σχ over those steps.  The NBA run is a run on the *executed word* (:mod:`mrodrake.planning.semantics`):
+each step's actions are stored in execution order (releases, grasps, then the region-changing actions in an
+order that reaches the step's NBA state for every crossing interleaving).
 
-JSON schema (``Plan.to_json``), version 1::
+JSON schema (``Plan.to_json``), version 2 (version 1 plans read labels only and are refused)::
 
     {
-      "format": "mrodrake.plan", "version": 1,
+      "format": "mrodrake.plan", "version": 2,
       "scenario": "case_study_1",              # scenario name
       "formula": "...",                         # the task formula as planned (macros expanded)
       "planner": "stylus" | "exact",
@@ -24,7 +26,7 @@ JSON schema (``Plan.to_json``), version 1::
          "from": 1, "to": 2,                    # 1-based run-state indices (the last step's "to" is
                                                 #   the index of the first suffix state)
          "cost": 240.3,                         # χ of the step
-         "actions": [ACTION, ...]}              # empty list for the all-idle self-loop
+         "actions": [ACTION, ...]}              # in execution order; empty for the all-idle self-loop
       ],
       "stats": {...}                            # planner statistics (sizes, timings), informative
     }
@@ -44,16 +46,24 @@ from __future__ import annotations
 
 import json
 import math
+import time
+from collections import Counter
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable, Sequence
 
 from mrodrake.errors import UserError
+from mrodrake.logic.ltl import Formula, parse
 from mrodrake.logic.nba import NBA
+from mrodrake.logic.translate import translate
+from mrodrake.planning.exact import check_power, solve_exact
+from mrodrake.planning.semantics import ExecutedWords, check_plan_words, relevant_mask
+from mrodrake.planning.stylus import Stylus
+from mrodrake.scenario import Scenario, load_scenario
 from mrodrake.ts import Action, Grasp, Navigate, Release, State, TransitionSystem, Transport
 
 FORMAT = "mrodrake.plan"
-VERSION = 1
+VERSION = 2
 
 
 class PlanVerificationError(AssertionError):
@@ -78,14 +88,20 @@ class Plan:
     # ------------------------------------------------------------------------------------ construction
     @staticmethod
     def from_runs(ts: TransitionSystem, scenario: str, formula: str, planner: str, seed: int | None,
-                  prefix: Sequence[tuple[State, int]], suffix: Sequence[tuple[State, int]],
+                  prefix: Sequence[tuple[State, int]], suffix: Sequence[tuple[State, int]], words: ExecutedWords,
                   stats: dict | None = None) -> "Plan":
-        """A plan whose actions and step costs are derived from the states by the TS."""
+        """A plan whose step costs come from the TS and whose actions are in an execution order that takes
+        the NBA run of the product nodes for every crossing interleaving (``words``)."""
         run = list(prefix) + list(suffix)
         if not suffix:
             raise PlanVerificationError("a plan needs a non-empty suffix")
         nxt = run[1:] + [suffix[0]]
-        actions = [ts.actions(a[0], b[0]) for a, b in zip(run, nxt)]
+        actions = []
+        for k, (a, b) in enumerate(zip(run, nxt)):
+            order = words.order(a[0], int(a[1]), b[0], int(b[1]))
+            if order is None:
+                raise PlanVerificationError(f"step {k + 1}: no execution order reaches NBA state {b[1]}")
+            actions.append(order)
         costs = [ts.cost(a[0], b[0]) for a, b in zip(run, nxt)]
         return Plan(scenario, formula, planner, seed, [(tuple(s), int(q)) for s, q in prefix],
                     [(tuple(s), int(q)) for s, q in suffix], actions, costs, ts, dict(stats or {}))
@@ -118,16 +134,20 @@ class Plan:
                    self.step_costs[k])
 
     # ------------------------------------------------------------------------------------ verification
-    def verify(self, ts: TransitionSystem, nba: NBA, formula=None) -> None:
+    def verify(self, ts: TransitionSystem, nba: NBA, formula) -> None:
         """Check the plan independently of the planner that made it (raises PlanVerificationError).
 
-        Every step is re-derived from the TS rules (``ts.check_transition``), the NBA run follows δ on
-        the source labels and visits an accepting state in the suffix, ``nba.accepts_lasso`` accepts the
-        lasso of labels, the stored actions and costs match the TS, and, given ``formula``, the lasso
-        satisfies it by the direct LTL semantics (:func:`mrodrake.logic.lasso.evaluate_lasso`).
+        Every step is re-derived from the TS rules (``ts.check_transition``) and holds the TS's actions, the
+        NBA state of every step is reached from the previous one by the step's executed words in its stored
+        order for every crossing interleaving (:class:`~mrodrake.planning.semantics.ExecutedWords`), the
+        suffix visits an accepting state, the stored costs match χ, the NBA accepts the lasso of source
+        labels, and every word that executing the lasso can produce satisfies ``formula`` (model-checked
+        against a fresh NBA of ¬φ, :func:`~mrodrake.planning.semantics.check_plan_words`).
         """
         if tuple(nba.ap) != tuple(ts.propositions):
             raise ValueError("verify needs the NBA over the TS propositions")
+        if isinstance(formula, str):
+            formula = parse(formula)
         if not self.suffix:
             raise PlanVerificationError("empty suffix")
         run = self.run
@@ -142,30 +162,26 @@ class Plan:
                 raise PlanVerificationError(f"run state {k + 1} is not a valid TS state")
             if not 0 <= q < nba.num_states:
                 raise PlanVerificationError(f"run state {k + 1}: NBA state {q} out of range")
+        words = ExecutedWords(ts, nba, relevant_mask(ts, formula))
         for step, part, i, j, a, b, acts, cost in self.steps():
             why = ts.check_transition(a[0], b[0])
             if why is not None:
                 raise PlanVerificationError(f"step {step} ({part}) is not a TS transition: {why}")
-            if b[1] not in nba.successors(a[1], ts.label_mask(a[0])):
-                raise PlanVerificationError(f"step {step} ({part}): NBA {a[1]} -> {b[1]} is not enabled by "
-                                            "the label of the source state")
-            if tuple(acts) != tuple(ts.actions(a[0], b[0])):
+            if Counter(acts) != Counter(ts.actions(a[0], b[0])):
                 raise PlanVerificationError(f"step {step} ({part}): stored actions differ from the TS's")
+            if _phase_rank(acts) != sorted(_phase_rank(acts)):
+                raise PlanVerificationError(f"step {step} ({part}): releases and grasps must come before the "
+                                            "region-changing actions")
+            if not words.reached(1 << a[1], a[0], b[0], acts) >> b[1] & 1:
+                raise PlanVerificationError(f"step {step} ({part}): executed in its order, some crossing "
+                                            f"interleaving does not take the NBA from {a[1]} to {b[1]}")
             if not math.isclose(cost, ts.cost(a[0], b[0]), rel_tol=1e-9, abs_tol=1e-9):
                 raise PlanVerificationError(f"step {step} ({part}): stored cost differs from χ")
         if not any(q in nba.accepting for _, q in self.suffix):
             raise PlanVerificationError("the suffix visits no accepting NBA state")
-        pre = [ts.label_mask(s) for s, _ in self.prefix]
-        cyc = [ts.label_mask(s) for s, _ in self.suffix]
-        if not nba.accepts_lasso(pre, cyc):
-            raise PlanVerificationError("the NBA does not accept the lasso of labels")
-        if formula is not None:
-            from mrodrake.logic.lasso import evaluate_lasso
-
-            sets_pre = [ts.label(s) for s, _ in self.prefix]
-            sets_cyc = [ts.label(s) for s, _ in self.suffix]
-            if not evaluate_lasso(formula, sets_pre, sets_cyc):
-                raise PlanVerificationError("the lasso of labels does not satisfy the formula")
+        steps = [(a[0], b[0], acts) for _, _, _, _, a, b, acts, _ in self.steps()]
+        if not check_plan_words(ts, formula, steps, len(self.prefix)):
+            raise PlanVerificationError("some word that executing the plan can produce violates the formula")
 
     # ------------------------------------------------------------------------------------ JSON
     def _ts(self) -> TransitionSystem:
@@ -227,7 +243,8 @@ class Plan:
         if not isinstance(data, dict) or data.get("format") != FORMAT:
             raise UserError(f"{source}: not an mrodrake plan (expected \"format\": \"{FORMAT}\")")
         if data.get("version") != VERSION:
-            raise UserError(f"{source}: version: unsupported plan version {data.get('version')!r}")
+            hint = " (version 1 plans read source labels only: plan again)" if data.get("version") == 1 else ""
+            raise UserError(f"{source}: version: unsupported plan version {data.get('version')!r}{hint}")
         for key in ("scenario", "formula", "planner", "prefix", "suffix", "actions"):
             if key not in data:
                 raise UserError(f"{source}: {key}: missing required field")
@@ -280,6 +297,11 @@ class Plan:
                 f"{len(self.prefix)} steps, suffix {self.suffix_cost:.1f} over {len(self.suffix)} steps)")
 
 
+def _phase_rank(actions: Sequence[Action]) -> list[int]:
+    """0 for releases and grasps, 1 for region-changing actions (execution phases of a step)."""
+    return [0 if isinstance(a, (Grasp, Release)) else 1 for a in actions]
+
+
 def _action_from_dict(ts: TransitionSystem, d: dict) -> Action:
     rob = {n: i for i, n in enumerate(ts.robot_names)}
     obj = {n: j for j, n in enumerate(ts.object_names)}
@@ -311,12 +333,15 @@ def _jsonable(x):
 # ---------------------------------------------------------------------------------------- high level
 def task_nba(scenario, ts: TransitionSystem):
     """(formula, NBA over ts.propositions) of the scenario's task."""
-    from mrodrake.logic.translate import translate
-    from mrodrake.logic.ltl import parse
-
     f = parse(scenario.task.formula, macros=dict(scenario.task.propositions), source="task.formula",
               macro_prefix="task.propositions.")
     return f, translate(f).with_ap(ts.propositions)
+
+
+def task_words(scenario, ts: TransitionSystem) -> tuple[Formula, NBA, ExecutedWords]:
+    """(formula, NBA over ts.propositions, executed-word semantics) of the scenario's task."""
+    f, nba = task_nba(scenario, ts)
+    return f, nba, ExecutedWords(ts, nba, relevant_mask(ts, f))
 
 
 def plan_scenario(scenario, planner: str = "stylus", seed: int | None = None, iterations: int | None = None,
@@ -325,14 +350,9 @@ def plan_scenario(scenario, planner: str = "stylus", seed: int | None = None, it
 
     ``planner="stylus"``: STyLuS* with ``seed`` (default ``planning.seed``) for ``iterations`` (default
     ``planning.iterations``) or ``time_limit`` seconds; ``"exact"``: optimal plan on the explicit product.
-    Unsatisfiable tasks and objects no team can move raise a one-line UserError.
+    Both plan on the executed-word semantics.  Unsatisfiable tasks and objects no team can move raise a
+    one-line UserError.
     """
-    import time
-
-    from mrodrake.planning.exact import check_power, solve_exact
-    from mrodrake.planning.stylus import Stylus
-    from mrodrake.scenario import Scenario, load_scenario
-
     if not isinstance(scenario, Scenario):
         scenario = load_scenario(scenario)
     if planner not in ("stylus", "exact"):
@@ -342,24 +362,24 @@ def plan_scenario(scenario, planner: str = "stylus", seed: int | None = None, it
     if time_limit is not None and not time_limit > 0:
         raise UserError(f"--time-limit: must be > 0, got {time_limit}")
     t0 = time.perf_counter()
-    from mrodrake.ts import TransitionSystem
-
     ts = TransitionSystem(scenario)
-    formula, nba = task_nba(scenario, ts)
+    formula, nba, words = task_words(scenario, ts)
     check_power(ts, nba)
     if planner == "exact":
-        res = solve_exact(ts, nba, progress=(lambda msg: progress({"message": msg})) if progress else None)
+        res = solve_exact(ts, nba, words.relevant,
+                          progress=(lambda msg: progress({"message": msg})) if progress else None)
         used_seed = None
     else:
         used_seed = scenario.planning.seed if seed is None else int(seed)
         its = scenario.planning.iterations if iterations is None else int(iterations)
-        res = Stylus(ts, nba, seed=used_seed).run(its, time_limit=time_limit, progress=progress)
+        res = Stylus(ts, nba, words.relevant, seed=used_seed).run(its, time_limit=time_limit, progress=progress)
     stats = dict(res.stats)
     if getattr(res, "history", None):
         stats["cost_history"] = [[round(t, 4), it, c] for t, it, c in res.history]
     stats["nba_states"] = nba.num_states
     stats["nba_edges"] = nba.num_edges
     stats["total_seconds"] = time.perf_counter() - t0
-    plan = Plan.from_runs(ts, scenario.name, str(formula), planner, used_seed, res.prefix, res.suffix, stats)
+    plan = Plan.from_runs(ts, scenario.name, str(formula), planner, used_seed, res.prefix, res.suffix, words,
+                          stats)
     plan.verify(ts, nba, formula)
     return plan

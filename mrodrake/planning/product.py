@@ -1,11 +1,10 @@
 """Product Büchi automaton PBA = TS ⊗ NBA (paper Section III-B, Def. PBA), on the fly or explicit.
 
-A product state is a pair ``(s, q)`` of a TS state and an NBA state, and
-
-    (s, q) → (s', q')   iff   s →_s s' in the TS   and   q' ∈ δ(q, L(s)),
-
-i.e. the NBA reads the label of the *source* TS state (run ``q0 -L(s0)-> q1 -L(s1)-> ...``); the cost
-of a product transition is χ(s, s') and the accepting product states are ``Π_s × F``.
+A product state is a pair ``(s, q)`` of a TS state and an NBA state.  The paper's product reads the label
+of the source state, (s, q) → (s', q') iff s → s' and q' ∈ δ(q, L(s)); ours reads the word that sequential
+execution produces (:mod:`mrodrake.planning.semantics`), which is the paper's reading on every step that
+moves no body across a rim the task mentions.  The cost of a product transition is χ(s, s') and the
+accepting product states are ``Π_s × F``.
 
 The module also holds the NBA preprocessing shared by the planners:
 
@@ -25,7 +24,10 @@ from typing import Iterator, Mapping, Sequence
 import numpy as np
 import scipy.sparse as sp
 
+from scipy.sparse.csgraph import breadth_first_order
+
 from mrodrake.logic.nba import NBA
+from mrodrake.planning.semantics import ExecutedWords
 from mrodrake.ts import ExplicitTS, State, TransitionSystem
 
 Node = tuple  # (TS state, NBA state)
@@ -203,12 +205,18 @@ def useful_states(nba: NBA) -> frozenset[int]:
 
 # ------------------------------------------------------------------------------------------- on the fly
 class Product:
-    """TS ⊗ NBA with implicit successors (paper Def. PBA); the NBA must be over ``ts.propositions``."""
+    """TS ⊗ NBA on the executed-word semantics (:mod:`mrodrake.planning.semantics`), implicit successors.
 
-    def __init__(self, ts: TransitionSystem, nba: NBA):
+    (s, q) → (s', q') iff s → s' in the TS and some execution order of the step's actions takes the NBA
+    from q to q' for every crossing interleaving; the NBA must be over ``ts.propositions`` and
+    ``relevant`` is the task's AP_φ mask (:func:`~mrodrake.planning.semantics.relevant_mask`).  Without a
+    crossing that AP_φ can see this is the paper's q' ∈ δ(q, L(s))."""
+
+    def __init__(self, ts: TransitionSystem, nba: NBA, relevant: int):
         if tuple(nba.ap) != tuple(ts.propositions):
             raise ValueError("the NBA must be over the TS propositions (use nba.with_ap(ts.propositions))")
         self.ts, self.nba = ts, nba
+        self.words = ExecutedWords(ts, nba, relevant)
 
     @property
     def initial(self) -> Node:
@@ -217,24 +225,21 @@ class Product:
     def is_accepting(self, node: Node) -> bool:
         return node[1] in self.nba.accepting
 
-    def nba_successors(self, s: State, q: int) -> list[int]:
-        """δ(q, L(s)): NBA states after leaving TS state s."""
-        return self.nba.successors(q, self.ts.label_mask(s))
+    def nba_successors(self, s: State, q: int, t: State) -> list[int]:
+        """NBA states q' of the product edges (s, q) → (t, q')."""
+        return sorted(self.words.successors(q, s, t))
 
     def successors(self, node: Node) -> Iterator[tuple[Node, float]]:
         """All product successors with their cost χ (enumerates the TS successors: small systems only)."""
         s, q = node
-        qs = self.nba_successors(s, q)
-        if not qs:
-            return
         for t in self.ts.successor_states(s):
             c = self.ts.cost(s, t)
-            for q2 in qs:
+            for q2 in self.nba_successors(s, q, t):
                 yield (t, q2), c
 
     def is_transition(self, a: Node, b: Node) -> bool:
-        """(s, q) → (s', q') by the TS rules (re-derived) and the NBA."""
-        return self.ts.check_transition(a[0], b[0]) is None and b[1] in self.nba_successors(a[0], a[1])
+        """(s, q) → (s', q') by the TS rules (re-derived) and the executed-word semantics."""
+        return self.ts.check_transition(a[0], b[0]) is None and b[1] in self.words.successors(a[1], a[0], b[0])
 
     def cost(self, a: Node, b: Node) -> float:
         return self.ts.cost(a[0], b[0])
@@ -282,8 +287,6 @@ class ExplicitProduct:
 
     def reachable(self) -> np.ndarray:
         """Boolean mask of the nodes reachable from the initial node."""
-        from scipy.sparse.csgraph import breadth_first_order
-
         order = breadth_first_order(self.graph, self.initial, directed=True, return_predecessors=False)
         mask = np.zeros(self.num_nodes, dtype=bool)
         mask[order] = True
@@ -291,53 +294,56 @@ class ExplicitProduct:
 
     @staticmethod
     def build(product: Product, ets: ExplicitTS | None = None) -> "ExplicitProduct":
-        """Vectorised construction straight into CSR order.  NBA moves depend only on the source's
-        label and q, so row ``(u, q)`` holds, for every TS edge ``u → v`` and every
-        ``q' ∈ δ(q, L(u))``, the entry ``(v, q')`` with cost χ(u, v)."""
-        ts, nba = product.ts, product.nba
+        """Vectorised construction.  Every TS edge u → v gets a *move*: edges whose step crosses no rim
+        AP_φ mentions share the move of their source label (δ(q, L(u))); the others get the move of their
+        executed-word key, computed once per distinct (source label, crossings) among them.  Row (u, q) then
+        holds (v, q') for every TS edge u → v and every q' of its move, with cost χ(u, v)."""
+        ts, nba, words = product.ts, product.nba, product.words
         if ets is None:
             ets = ts.build()
         S, Q = ets.num_states, nba.num_states
-        pos = ets.states[:, : ts.N + ts.M]
+        src = np.repeat(np.arange(S, dtype=np.int64), np.diff(ets.indptr))
+        dst = ets.targets.astype(np.int64)
+        n_ent = ts.N + ts.M
+        pos = ets.states[:, :n_ent]
         uniq, label_of = np.unique(pos, axis=0, return_inverse=True)
         label_of = label_of.ravel()
-        L, K = len(uniq), ts.K
-        succ = []
-        for lid in range(L):
+        matrices = []
+        for lid in range(len(uniq)):
             mask = 0
             for e, k in enumerate(uniq[lid]):
-                mask |= 1 << (e * K + int(k))
-            succ.append([nba.successors(q, mask) for q in range(Q)])
-        kmax = max((len(r) for rows in succ for r in rows), default=0)
-        ns = np.zeros((L, Q), dtype=np.int64)
-        table = np.zeros((L, Q, max(kmax, 1)), dtype=np.int64)
-        for lid, rows in enumerate(succ):
-            for q, r in enumerate(rows):
-                ns[lid, q] = len(r)
-                table[lid, q, : len(r)] = r
-        i32 = np.int32
-        deg = np.diff(ets.indptr).astype(i32)
-        # rows in order (u, q); row (u, q) has deg[u] * ns[label(u), q] entries (edge-major, then q')
-        nsq = ns[label_of].astype(i32).ravel()              # (S*Q,) successors per row
-        count = np.repeat(deg, Q) * nsq
-        indptr = np.zeros(S * Q + 1, dtype=np.int64)
-        np.cumsum(count, out=indptr[1:])
-        total = int(indptr[-1])
-        if total >= 2**31 - 1:
-            raise MemoryError(f"explicit product too large ({total} transitions)")
-        row = np.repeat(np.arange(S * Q, dtype=i32), count)
-        within = np.arange(total, dtype=i32)
-        within -= indptr[:-1].astype(i32)[row]
-        k_per = nsq[row]
-        e_local = within // k_per
-        kk = within - e_local * k_per
-        del within
-        u = row // Q
-        lab_q = label_of.astype(i32)[u] * Q + (row - u * Q)
-        del row
-        edge = ets.indptr[:-1].astype(i32)[u] + e_local
-        del u, e_local
-        col = ets.targets[edge].astype(i32) * Q + table.reshape(-1).astype(i32)[lab_q * table.shape[2] + kk]
-        data = ets.costs[edge]
-        graph = sp.csr_matrix((data, col, indptr), shape=(S * Q, S * Q), copy=False)
+                mask |= 1 << (e * ts.K + int(k))
+            matrices.append(words.matrix_for(mask & words.relevant, ()))
+        move = label_of[src].astype(np.int64)
+        A, B = ets.states[src], ets.states[dst]
+        vis = words.visible(A, B)
+        if vis.any():
+            idx = np.flatnonzero(vis)
+            rel_ent = np.flatnonzero(words.entity_region.any(axis=1))
+            cols = np.concatenate([A[idx][:, rel_ent], B[idx][:, rel_ent], A[idx][:, n_ent:]], axis=1)
+            keys, inv = np.unique(cols, axis=0, return_inverse=True)
+            inv = inv.ravel()
+            first = np.full(len(keys), -1, dtype=np.int64)
+            first[inv[::-1]] = idx[::-1]
+            base = len(matrices)
+            for e in first:
+                matrices.append(product.words.matrix(ets.state(int(src[e])), ets.state(int(dst[e]))))
+            move[idx] = base + inv
+        Mv = np.stack(matrices) if matrices else np.zeros((0, Q, Q), dtype=bool)
+        rows_all, cols_all, data_all = [], [], []
+        chunk = max(1024, (1 << 24) // max(1, Q * Q))  # bounds the (edges, Q, Q) temporary to ~16 MB
+        for lo in range(0, len(src), chunk):
+            hi = min(len(src), lo + chunk)
+            e_move = Mv[move[lo:hi]]  # (edges, Q, Q)
+            e_ix, q, q2 = np.nonzero(e_move)
+            e_ix = e_ix + lo
+            rows_all.append(src[e_ix] * Q + q)
+            cols_all.append(dst[e_ix] * Q + q2)
+            data_all.append(ets.costs[e_ix])
+        rows = np.concatenate(rows_all) if rows_all else np.zeros(0, dtype=np.int64)
+        cols = np.concatenate(cols_all) if cols_all else np.zeros(0, dtype=np.int64)
+        data = np.concatenate(data_all) if data_all else np.zeros(0)
+        if len(rows) >= 2**31 - 1:
+            raise MemoryError(f"explicit product too large ({len(rows)} transitions)")
+        graph = sp.csr_matrix((data, (rows, cols)), shape=(S * Q, S * Q))
         return ExplicitProduct(product, ets, graph)

@@ -53,6 +53,7 @@ from mrodrake.planning.product import (CubeGoal, accepting_on_cycle, cube_goal, 
                                        cycle_distances, hop_distances, hop_distances_from, prune_nba,
                                        useful_states)
 from mrodrake.planning.sampler import Goal, SuccessorSampler
+from mrodrake.planning.semantics import ExecutedWords
 from mrodrake.ts import State, TransitionSystem
 
 INF = math.inf
@@ -77,11 +78,13 @@ class _Transitions:
         the robot to stay, the object involved to stay, and never switches objects; a robot that keeps
         grasping an object moves iff the object moves.  These imply that a moving object keeps its team,
         so per object only Λ with s's team remains (required powers are > 0, so the team is non-empty).
+        Last, the step must fit while executed one action at a time (``TransitionSystem.steps_fit``,
+        symmetric too).
         """
         N, M = self.N, self.M
         n = len(X)
         if M == 0:
-            return np.ones(n, dtype=bool)
+            return self.ts.steps_fit(X, s)
         s = np.asarray(s, dtype=np.int64).ravel()
         XR, XO, XG = X[:, :N], X[:, N : N + M], X[:, N + M :]
         sR, sO, sG = s[:N], s[N : N + M], s[N + M :]
@@ -106,6 +109,9 @@ class _Transitions:
         weak = power < self.required
         if weak.any():
             ok &= ~moved[:, weak].any(axis=1)
+        rows = np.flatnonzero(ok)
+        if len(rows):
+            ok[rows] = self.ts.steps_fit(X[rows], s)
         return ok
 
     def cost(self, A: np.ndarray, B: np.ndarray) -> np.ndarray:
@@ -215,9 +221,10 @@ class _Tree:
     def _closes(self, v: int) -> bool:
         s_a, q_a = self.close_to
         tid = self.n_tid[v]
-        if not self.p.labels.T[self.lid[tid], self.n_q[v], q_a]:
+        s = self.states[tid]
+        if self.p.ts.check_transition(s, s_a) is not None:
             return False
-        return self.p.ts.check_transition(self.states[tid], s_a) is None
+        return bool(self.p.words.matrix(s, s_a)[self.n_q[v], q_a])
 
     def _reparent(self, v: int, u: int, w: float) -> None:
         old = self.parent[v]
@@ -252,6 +259,13 @@ class _Tree:
         parents = self.node_of[pred[pi], pq]
         base = self.C[parents] + chi[pi]
         T = p.labels.T[self.lid[pred[pi]], pq]  # (candidates, Q): NBA moves of each candidate
+        vis = np.flatnonzero(p.words.visible(X[pred], s))
+        if len(vis):  # steps whose crossings the task sees: executed-word moves instead of the label's
+            T = T.copy()
+            for k in vis:
+                rows = np.flatnonzero(pi == k)
+                if len(rows):
+                    T[rows] = p.words.matrix(self.states[int(pred[k])], s)[pq[rows]]
         tot = np.where(T, base[:, None], INF)
         best = tot.argmin(axis=0)
         best_cost = tot[best, np.arange(self.Q)]
@@ -288,14 +302,25 @@ class _Tree:
         """Reparent the nodes at TS states ``succ`` (with costs ``chi`` from v's state) through v."""
         p = self.p
         tid = self.n_tid[v]
+        s = self.states[tid]
         new_cost = self.C[v] + chi
+        vis = p.words.visible(self.X[succ], s)
+        plain = ~vis
         for q2 in p.labels.succ[self.lid[tid]][self.n_q[v]]:
             ys = self.node_of[succ, q2]
-            better = (ys >= 0) & (new_cost < self.C[np.maximum(ys, 0)] - 1e-9)
+            better = plain & (ys >= 0) & (new_cost < self.C[np.maximum(ys, 0)] - 1e-9)
             for k in np.flatnonzero(better):
-                y = int(ys[k])
-                if y != v and self.C[v] + chi[k] < self.C[y] - 1e-9:
-                    self._reparent(y, v, float(chi[k]))
+                self._try_reparent(int(ys[k]), v, float(chi[k]))
+        for k in np.flatnonzero(vis):
+            row = p.words.matrix(s, self.states[int(succ[k])])[self.n_q[v]]
+            for q2 in np.flatnonzero(row):
+                y = int(self.node_of[succ[k], q2])
+                if y >= 0:
+                    self._try_reparent(y, v, float(chi[k]))
+
+    def _try_reparent(self, y: int, v: int, w: float) -> None:
+        if y != v and self.C[v] + w < self.C[y] - 1e-9:
+            self._reparent(y, v, w)
 
     def select(self, rng: np.random.Generator) -> int:
         """With probability p_rand a uniform node of the minimum-distance bucket, else any expandable node."""
@@ -408,12 +433,15 @@ class StylusResult:
 
 
 class Stylus:
-    """STyLuS* planner for ``ts`` and an NBA over ``ts.propositions``."""
+    """STyLuS* planner for ``ts`` and an NBA over ``ts.propositions`` on the executed-word semantics
+    (``relevant``: the task's AP_φ mask, :func:`~mrodrake.planning.semantics.relevant_mask`)."""
 
-    def __init__(self, ts: TransitionSystem, nba: NBA, seed: int | None = None, p_rand: float | None = None,
-                 p_new: float | None = None, max_active_suffix: int = 4, suffix_budget: int = 1000):
+    def __init__(self, ts: TransitionSystem, nba: NBA, relevant: int, seed: int | None = None,
+                 p_rand: float | None = None, p_new: float | None = None, max_active_suffix: int = 4,
+                 suffix_budget: int = 1000):
         self.ts = ts
         self.nba = prune_nba(nba, ts)
+        self.words = ExecutedWords(ts, self.nba, relevant)
         self.p_rand = ts.scenario.planning.p_rand if p_rand is None else p_rand
         self.p_new = ts.scenario.planning.p_new if p_new is None else p_new
         self.rng = np.random.default_rng(seed)

@@ -342,7 +342,7 @@ class Mission:
     def __init__(self, scenario: Scenario, plan, suffix_cycles: int = 1, seed: int = 0, *, log_period: float = 0.5,
                  check_period: float = 0.5, accuracy: float = 1e-3, max_step: float = 2.0,
                  integrator: str = "runge_kutta3", rest_speed: float | None = None):
-        from mrodrake.planning.plan import task_nba
+        from mrodrake.planning.plan import task_words
 
         if suffix_cycles < 0:
             raise UserError(f"--suffix-cycles: must be >= 0, got {suffix_cycles}")
@@ -350,7 +350,7 @@ class Mission:
             raise UserError(f"plan: made for scenario '{plan.scenario}', not '{scenario.name}'")
         self.scenario, self.plan, self.seed = scenario, plan, int(seed)
         self.ts = plan.ts if plan.ts is not None else TransitionSystem(scenario)
-        self.formula, self.nba = task_nba(scenario, self.ts)
+        self.formula, self.nba, self.words = task_words(scenario, self.ts)
         couplings = []
         for acts in plan.actions:
             for a in acts:
@@ -408,7 +408,7 @@ class Mission:
 
         kw = {} if rest_speed is None else {"rest_speed": rest_speed}
         self.supervisor = b.AddSystem(Supervisor(
-            scenario, self.ts, self.nba, plan, suffix_cycles=suffix_cycles, seed=self.seed, couplings=couplings,
+            scenario, self.ts, self.words, plan, suffix_cycles=suffix_cycles, seed=self.seed, couplings=couplings,
             route_ports=route_ports, initial_positions=init, period=check_period, build_task=make_task, **kw))
         sup = self.supervisor
         for k, e in enumerate(robots + objects):
@@ -451,6 +451,11 @@ class Mission:
         self.sim_seconds = 0.0
         self.wall_seconds = 0.0
         self._stop = False
+        self._fault = ""
+        self._progress, self._last_done = None, -1
+        self._controllers = {f"nav_{r}": c for r, c in self.nav_ctrls.items()}
+        self._controllers.update({f"{name}_ctrl": c for name, c in self.team_ctrls.items()})
+        self.simulator.set_monitor(self._Monitor)
 
     # ------------------------------------------------------------------ running
     @property
@@ -471,54 +476,51 @@ class Mission:
         self._stop = True
 
     def run(self, progress: Callable[[int, int], None] | None = None, t_max: float = 1e7) -> "MissionLog":
-        """Simulate until the supervisor ends the mission (one ``AdvanceTo``); ``progress(done, total)`` is
-        called whenever a plan step completes.  Returns :meth:`log`.
+        """Simulate until the supervisor ends the mission or ``t_max`` (one ``AdvanceTo``; call again to go
+        on); ``progress(done, total)`` is called whenever a plan step completes.  Returns :meth:`log`.
 
-        After every integration step the active controllers are checked for a fault (the state left the free
-        set or the map's domain, :class:`~mrodrake.control.adaptive.ControlEval`); a fault, an integrator
-        failure or any other exception inside the simulation ends the mission as a failed primitive with a
-        one-line reason (:meth:`~mrodrake.systems.supervisor.Supervisor.abort`), and the log keeps everything
-        recorded so far."""
-        sim = self.simulator
-        last = [-1]
-        controllers = {f"nav_{r}": c for r, c in self.nav_ctrls.items()}
-        controllers.update({f"{name}_ctrl": c for name, c in self.team_ctrls.items()})
-        fault = [""]
-
-        def monitor(root_context):
-            if self._stop:
-                return EventStatus.ReachedTermination(self.diagram, "stopped by the user")
-            st = self.supervisor.sup_state(self.supervisor.GetMyContextFromRoot(root_context))
-            for name, cmd in st.tasks.items():
-                if cmd is not None:
-                    why = controllers[name].fault(controllers[name].GetMyContextFromRoot(root_context))
-                    if why:
-                        fault[0] = f"controller fault of {name}: {why}"
-                        return EventStatus.ReachedTermination(self.diagram, fault[0])
-            if progress is not None:
-                done = self.steps_done() if st.status != "done" else self.total_steps
-                if done != last[0]:
-                    last[0] = done
-                    progress(done, self.total_steps)
-            return EventStatus.Succeeded()
-
-        sim.set_monitor(monitor)
+        A controller fault (:meth:`_Monitor`), an integrator failure or any other exception inside the
+        simulation ends the mission as a failed primitive with a one-line reason
+        (:meth:`~mrodrake.systems.supervisor.Supervisor.abort`); the log keeps everything recorded so far."""
+        self._progress, self._last_done = progress, -1
         t0 = time.perf_counter()
         try:
-            sim.AdvanceTo(float(t_max))
+            self.simulator.AdvanceTo(float(t_max))
         except Exception as exc:  # noqa: BLE001 - any failure inside the simulation ends the mission cleanly
             self._abort(_simulation_failure(exc))
         finally:
             self.wall_seconds += time.perf_counter() - t0
-            sim.clear_monitor()
-        if fault[0]:
-            self._abort(fault[0])
+            self._progress = None
+        if self._fault:
+            self._abort(self._fault)
         if progress is not None:
             progress(self.steps_done(), self.total_steps)
         return self.log()
 
+    def _Monitor(self, root_context):
+        """Simulator monitor, after every integration step: a stop request, or a fault of an active controller
+        (its state left the free set or the map's domain; Drake would otherwise shrink the next step forever
+        on its NaN derivatives), ends ``AdvanceTo``; progress is reported per completed plan step."""
+        if self._stop:
+            return EventStatus.ReachedTermination(self.diagram, "stopped by the user")
+        st = self.supervisor.sup_state(self.supervisor.GetMyContextFromRoot(root_context))
+        for name, cmd in st.tasks.items():
+            if cmd is not None:
+                ctrl = self._controllers[name]
+                why = ctrl.fault(ctrl.GetMyContextFromRoot(root_context))
+                if why:
+                    self._fault = f"controller fault of {name}: {why}"
+                    return EventStatus.ReachedTermination(self.diagram, self._fault)
+        if self._progress is not None:
+            done = self.total_steps if st.status == "done" else max(0, st.step_idx)
+            if done != self._last_done:
+                self._last_done = done
+                self._progress(done, self.total_steps)
+        return EventStatus.Succeeded()
+
     def _abort(self, reason: str) -> None:
         """Record ``reason`` as the failure of the primitive in execution and sample the final state."""
+        self._fault = ""
         ctx = self.simulator.get_mutable_context()
         self.supervisor.abort(self.supervisor.GetMyMutableContextFromRoot(ctx), reason)
         self.logger.Sample(self.logger.GetMyContextFromRoot(ctx))
@@ -556,7 +558,7 @@ class Mission:
         message = st.message if st.status != "running" else "not finished"
         return MissionLog(self.scenario, self.plan, traj, sig, events, grasps, ok, message, final, expected,
                           self.steps_done(), self.total_steps, t_now, self.wall_seconds, list(st.primitives),
-                          sorted(st.run))
+                          st.monitor.states)
 
 
 def _simulation_failure(exc: BaseException) -> str:

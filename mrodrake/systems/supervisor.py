@@ -11,14 +11,14 @@ periodic unrestricted update reads the routed states of all robots and objects a
 * drives the controllers' abstract ``task`` inputs, the plants' ``sync`` inputs (:class:`SyncCommand`: a
   state reset with a version counter, a parking brake and, for coupled plants, the grasp offsets) and the
   PortSwitch selectors (own plant or coupled plant);
-* monitors the executed trace: whenever the set of true propositions changes, the subset run of the NBA
-  reads the label being left (:func:`advance_run`); at each planned state the run must contain the plan's
-  NBA state, and the executed discrete state must equal the planned one;
+* monitors the executed word (:class:`~mrodrake.execution.monitor.WordMonitor`, the semantics the plan was
+  made and verified on): at each planned state the monitored run must contain the plan's NBA state, and the
+  executed discrete state must equal the planned one;
 * ends the simulation with ``ReachedTermination`` after the last step, or on a failure (recorded).
 
-Sequencing (one entity moves at a time, the others are parked obstacles): a TS step's releases come first
-(disengage, back off), then grasps (docking), then the region-changing actions in an order chosen by
-:func:`choose_order` so that the monitored run stays alive and reaches the plan's NBA state.
+Sequencing (one entity moves at a time, the others are parked obstacles): a TS step's actions run in the
+plan's execution order: releases (disengage, back off), grasps (docking), then the region-changing actions
+in the order that reaches the plan's NBA state for every crossing interleaving.
 
 Local motions (our addition, :mod:`mrodrake.control.local`): docking at a grasp point, backing off after a
 release, and the last part of every navigation / transport once the entity's ball is inside its target region
@@ -46,6 +46,7 @@ from mrodrake.control.adaptive import AdaptiveGains
 from mrodrake.control.freespace import DEFAULT_MARGIN, Disk, entity_free_space, goal_point
 from mrodrake.control.local import PATH_CLEARANCE, disk_obstacles, local_path, local_task
 from mrodrake.errors import UserError
+from mrodrake.execution.monitor import WordMonitor, entity_regions, label_of
 from mrodrake.geometry import grasp_layout, polygon, workspace_free_space
 from mrodrake.packing import place
 from mrodrake.systems.controllers import TaskCommand
@@ -82,103 +83,6 @@ class SyncCommand:
 
     def __deepcopy__(self, memo):
         return self
-
-
-# ------------------------------------------------------------------------------------------ labels, run
-def entity_regions(centers: np.ndarray, radii: np.ndarray, positions: np.ndarray, region_radii: np.ndarray,
-                   tol: float = 1e-9) -> np.ndarray:
-    """Region index of every entity whose ball B̄(x_e, r_e) lies in a region (−1: in none)."""
-    d = np.hypot(positions[:, None, 0] - centers[None, :, 0], positions[:, None, 1] - centers[None, :, 1])
-    inside = d + radii[:, None] <= region_radii[None, :] + tol
-    return np.where(inside.any(axis=1), inside.argmax(axis=1), -1)
-
-
-def label_of(regions: Sequence[int], K: int) -> int:
-    """TS label mask of a configuration: bit e·K + k for entity e in region k (none if k = −1)."""
-    m = 0
-    for e, k in enumerate(regions):
-        if k >= 0:
-            m |= 1 << (e * K + int(k))
-    return m
-
-
-def advance_run(nba, run: frozenset, letter: int) -> frozenset:
-    """Subset run of the NBA reading one letter (the label of the configuration being left)."""
-    out = set()
-    for q in run:
-        out.update(nba.successors(q, letter))
-    return frozenset(out)
-
-
-def mover_entities(ts, a) -> tuple[list[int], int, int]:
-    """(entities, src, dst) of a region-changing action (entity e: robots 0..N−1, objects N..N+M−1)."""
-    if isinstance(a, Navigate):
-        return [a.robot], a.src, a.dst
-    return [ts.N + a.obj] + list(a.team), a.src, a.dst
-
-
-def order_letters(ts, regions: Sequence[int], movers: Sequence) -> list[int]:
-    """The labels the configuration passes through when ``movers`` run one after the other: each mover's
-    entities leave their region (a configuration where they are in none), then enter the target."""
-    cur = list(regions)
-    out = []
-    for a in movers:
-        ents, src, dst = mover_entities(ts, a)
-        for e in ents:
-            cur[e] = -1
-        out.append(label_of(cur, ts.K))
-        for e in ents:
-            cur[e] = dst
-        out.append(label_of(cur, ts.K))
-    return out
-
-
-def run_through(nba, run: frozenset, label: int, letters: Sequence[int]) -> frozenset:
-    """The run after a planned step whose configuration labels are ``letters`` (starting from ``label``):
-    each change reads the label left; a step without change reads its source label once."""
-    changed = False
-    for new in letters:
-        if new != label:
-            run = advance_run(nba, run, label)
-            label, changed = new, True
-            if not run:
-                return run
-    if not changed:
-        run = advance_run(nba, run, label)
-    return run
-
-
-def choose_order(ts, nba, run: frozenset, regions: Sequence[int], movers: Sequence, expected_q: int,
-                 max_permutations: int = 40320):
-    """Order of the region-changing actions of one TS step (Sec. "soundness beyond the paper"): the first
-    permutation, starting from the plan's order, whose sequential label trace keeps the monitored subset run
-    alive and ends with the plan's NBA state ``expected_q`` in it.  Returns (order, run after) or (None, ∅).
-    Beyond ``max_permutations`` candidates a greedy order is tried (each next mover keeps the run alive)."""
-    movers = list(movers)
-    label = label_of(regions, ts.K)
-    n_perm = math.factorial(len(movers))
-    if n_perm <= max_permutations:
-        for perm in itertools.permutations(movers):
-            after = run_through(nba, run, label, order_letters(ts, regions, perm))
-            if expected_q in after:
-                return list(perm), after
-        return None, frozenset()
-    chosen, rest, cur_run, cur_regions = [], list(movers), run, list(regions)
-    while rest:
-        for a in rest:
-            trial = run_through(nba, cur_run, label_of(cur_regions, ts.K), order_letters(ts, cur_regions, [a]))
-            if trial:
-                break
-        else:
-            return None, frozenset()
-        chosen.append(a)
-        rest.remove(a)
-        ents, _, dst = mover_entities(ts, a)
-        for e in ents:
-            cur_regions[e] = dst
-        cur_run = trial
-    after = run_through(nba, run, label, order_letters(ts, regions, chosen))
-    return (chosen, after) if expected_q in after else (None, frozenset())
 
 
 # ------------------------------------------------------------------------------------------ plan steps
@@ -235,9 +139,7 @@ class SupState:
     engaged: dict = field(default_factory=dict)
     docked: dict = field(default_factory=dict)
     grasp_open: dict = field(default_factory=dict)
-    run: frozenset = frozenset()
-    label: int = 0
-    changed: bool = False
+    monitor: WordMonitor | None = None
     events: tuple = ()
     grasps: tuple = ()
     primitives: tuple = ()
@@ -249,7 +151,7 @@ class SupState:
     def copy(self) -> "SupState":
         return replace(self, op_info=dict(self.op_info), sync=dict(self.sync), tasks=dict(self.tasks),
                        route=dict(self.route), engaged=dict(self.engaged), docked=dict(self.docked),
-                       grasp_open=dict(self.grasp_open))
+                       grasp_open=dict(self.grasp_open), monitor=self.monitor.copy())
 
     def __deepcopy__(self, memo):
         return self
@@ -289,13 +191,13 @@ class Supervisor(LeafSystem):
     """Plan executor (module docstring).  Inputs ``state_<entity>`` ([x, ẋ] routed, robots then objects);
     abstract outputs ``task_<controller>``, ``sync_<plant>`` and ``select_<entity>``."""
 
-    def __init__(self, scenario, ts, nba, plan, *, suffix_cycles: int = 1, seed: int = 0, couplings=(),
+    def __init__(self, scenario, ts, words, plan, *, suffix_cycles: int = 1, seed: int = 0, couplings=(),
                  route_ports: dict | None = None, initial_positions: dict | None = None, period: float = 0.5,
                  rest_speed: float = REST_SPEED, dock_tol: float = DOCK_TOL, goal_tol: float = GOAL_TOL,
                  time_limit: tuple[float, float] = (1500.0, 10.0), build_task=None):
         super().__init__()
         self.set_name("supervisor")
-        self.scenario, self.ts, self.nba, self.plan = scenario, ts, nba, plan
+        self.scenario, self.ts, self.words, self.plan = scenario, ts, words, plan
         self.seed = int(seed)
         self.steps = expand_steps(plan, suffix_cycles)
         self.robots = list(scenario.robot_names)
@@ -329,8 +231,7 @@ class Supervisor(LeafSystem):
         for j in range(self.M):
             st.engaged[j] = None
         pos0 = np.array([init_pos.get(e, (0.0, 0.0)) for e in self.entities], dtype=float).reshape(-1, 2)
-        st.label = label_of(entity_regions(self.centers, self.radii, pos0, self.region_radii), self.K)
-        st.run = frozenset([nba.initial])
+        st.monitor = WordMonitor(words, entity_regions(self.centers, self.radii, pos0, self.region_radii))
         self._initial = st
         self._state_index = self.DeclareAbstractState(AbstractValue.Make(st))
         self.state_ports = [self.DeclareVectorInputPort(f"state_{e}", 4) for e in self.entities]
@@ -636,14 +537,11 @@ class Supervisor(LeafSystem):
                 if op.kind == "transport" and op.action.src == k]
 
     def _excursion_ok(self, st: SupState, X: np.ndarray, robot: int) -> bool:
-        """Whether ``robot`` may leave its region for a moment while docking (through the approach ring,
-        when the region is too crowded for a path inside it): the monitored NBA run, reading the current
-        label and then the label with the robot in no region, must still contain the plan's NBA state of
-        the current step."""
-        regions = list(entity_regions(self.centers, self.radii, X[:, :2], self.region_radii, tol=1e-6))
-        regions[robot] = -1
-        run = advance_run(self.nba, advance_run(self.nba, st.run, st.label), label_of(regions, self.K))
-        return bool(run) and self.steps[st.step_idx].dst_q in run
+        """Whether ``robot`` may leave its region for a moment while docking (through the approach ring, when
+        the region is too crowded for a path inside it): only if the task cannot see it, i.e. the robot's
+        proposition for that region is not one of the task's, so the excursion adds no letter to the word."""
+        k = int(entity_regions(self.centers, self.radii, X[:, :2], self.region_radii, tol=1e-6)[robot])
+        return k >= 0 and not self.words.relevant >> (robot * self.K + k) & 1
 
     def _approach_widths(self) -> np.ndarray:
         """Width of the approach ring of every region: APPROACH, or the clearance of the region's disk to
@@ -732,20 +630,19 @@ class Supervisor(LeafSystem):
             st.tasks[c] = None
 
     def _monitor(self, st: SupState, t: float, X: np.ndarray) -> None:
-        """Advance the monitored NBA run when the set of true propositions changes."""
+        """Read the executed word since the last tick (:class:`~mrodrake.execution.monitor.WordMonitor`)."""
         regions = entity_regions(self.centers, self.radii, X[:, :2], self.region_radii, tol=1e-6)
-        lab = label_of(regions, self.K)
-        if lab == st.label:
+        crossed = st.monitor.observe(regions)
+        if not crossed:
             return
-        st.run = advance_run(self.nba, st.run, st.label)
-        st.label, st.changed = lab, True
+        lab = label_of(st.monitor.regions, self.K)
         props = [p for b, p in enumerate(self.ts.propositions) if lab >> b & 1]
         spec = self.steps[st.step_idx] if 0 <= st.step_idx < len(self.steps) else None
         self._event(st, kind="label", t_start=t, t_end=t, step=spec.index if spec else 0,
                     plan_step=spec.plan_step if spec else 0, action="", entities="", from_region="",
-                    to_region="", ok=bool(st.run), propositions=" ".join(props),
-                    nba_states=" ".join(str(q) for q in sorted(st.run)), detail="")
-        if not st.run:
+                    to_region="", ok=bool(st.monitor.run), propositions=" ".join(props),
+                    nba_states=" ".join(str(q) for q in st.monitor.states), detail="")
+        if not st.monitor.run:
             raise _Failure(f"the monitored NBA run died at t={t:.2f} (propositions: {' '.join(props) or 'none'})")
 
     def _advance(self, st: SupState, t: float, X: np.ndarray) -> None:
@@ -775,30 +672,15 @@ class Supervisor(LeafSystem):
 
     def _begin_step(self, st: SupState, t: float, X: np.ndarray) -> None:
         spec = self.steps[st.step_idx]
-        st.changed = False
-        releases = [a for a in spec.actions if isinstance(a, Release)]
-        grasps = [a for a in spec.actions if isinstance(a, Grasp)]
-        movers = [a for a in spec.actions if isinstance(a, (Navigate, Transport))]
-        regions = list(spec.src[: self.N + self.M])
-        order, _ = choose_order(self.ts, self.nba, st.run, regions, movers, spec.dst_q)
-        if order is None:
-            raise _Failure(f"step {spec.index} (plan step {spec.plan_step}): no order of the concurrent actions "
-                           "keeps the monitored NBA run consistent with the plan")
-        ops = [Op("release", a, spec) for a in releases] + [Op("grasp", a, spec) for a in grasps]
-        ops += [Op("navigate" if isinstance(a, Navigate) else "transport", a, spec) for a in order]
-        st.ops = tuple(ops)
-        if movers and order != movers:
-            self._event(st, kind="order", t_start=t, t_end=t, step=spec.index, plan_step=spec.plan_step,
-                        action="; ".join(self.ts.format_action(a, "names") for a in order), entities="",
-                        from_region="", to_region="", ok=True, propositions="", nba_states="",
-                        detail="concurrent actions reordered for the monitored NBA run")
+        st.monitor.begin_step()
+        kinds = {Release: "release", Grasp: "grasp", Navigate: "navigate", Transport: "transport"}
+        st.ops = tuple(Op(kinds[type(a)], a, spec) for a in spec.actions)
 
     def _end_step(self, st: SupState, t: float, X: np.ndarray) -> None:
         spec = self.steps[st.step_idx]
-        if not st.changed:
-            st.run = advance_run(self.nba, st.run, st.label)
-        if spec.dst_q not in st.run:
-            raise _Failure(f"step {spec.index}: the monitored NBA run {sorted(st.run)} does not contain the "
+        st.monitor.end_step()
+        if not st.monitor.contains(spec.dst_q):
+            raise _Failure(f"step {spec.index}: the monitored NBA run {st.monitor.states} does not contain the "
                            f"plan's NBA state {spec.dst_q}")
         got = self.discrete_state(st, X)
         if got != tuple(spec.dst):
@@ -973,7 +855,7 @@ class Supervisor(LeafSystem):
         self._event(st, kind="primitive", t_start=st.op_t0, t_end=t, step=op.step.index,
                     plan_step=op.step.plan_step, action=self.ts.format_action(a, "names"), entities=" ".join(ents),
                     from_region=names[src], to_region=names[dst], ok=bool(ok), propositions="",
-                    nba_states=" ".join(str(q) for q in sorted(st.run)), detail=detail)
+                    nba_states=" ".join(str(q) for q in st.monitor.states), detail=detail)
 
     def _run_op(self, st: SupState, t: float, X: np.ndarray) -> bool:
         """Progress the current primitive; True when it is complete."""

@@ -13,6 +13,7 @@ from shapely.geometry import Point, box
 
 from mrodrake.control.adaptive import (
     CIRCLE_DEFICIT_FACTOR,
+    FAULT_DAMPING,
     AdaptiveGains,
     LocalBarrierNavigationFunction,
     NavigationTask,
@@ -201,15 +202,16 @@ def test_phi_is_never_finite_and_negative_inside_an_obstacle(angle, depth):
 
 def test_task_reports_a_fault_past_a_pole_and_drives_nothing():
     """Past a barrier's pole (here: inside another entity's grown disk) the law is undefined: the evaluation
-    carries a fault naming the state, with zero (finite) input and rates, so the integrator never follows
-    −∇φ out of the free set."""
+    carries a fault naming the state, zero rates and a stiff finite brake instead of −∇φ, so the integrator
+    rejects a trial step that gets there rather than following the law out of the free set."""
     task = local_task([5.0, 0.0], [[2.5, 1.5]], [1.0], [0.0, 0.0], 8.0, AdaptiveGains(), k1=0.25, k2=5.0,
                       start=[0.0, 0.0])
     ok = task.evaluate(np.zeros(2), np.zeros(2), 0.5, 0.0)
     assert ok.fault == "" and np.linalg.norm(ok.u) > 0.0
     ev = task.evaluate(np.array([2.5, 1.0]), np.array([0.3, 0.0]), 0.5, 0.0)
     assert "outside the free set" in ev.fault and "x = (2.5000, 1.0000)" in ev.fault
-    assert np.all(ev.u == 0.0) and ev.m_hat_dot == 0.0 and ev.alpha_hat_dot == 0.0
+    np.testing.assert_allclose(ev.u, [-FAULT_DAMPING * 0.3, 0.0])
+    assert ev.m_hat_dot == 0.0 and ev.alpha_hat_dot == 0.0
     assert task.evaluate(np.array([9.0, 0.0]), np.zeros(2), 0.5, 0.0).fault  # outside the rim
 
 

@@ -7,6 +7,7 @@ from pathlib import Path
 import pytest
 
 from mrodrake.planning.plan import task_nba
+from mrodrake.planning.semantics import ExecutedWords, relevant_mask
 from mrodrake.scenario import load_scenario
 from mrodrake.ts import TransitionSystem
 
@@ -15,13 +16,15 @@ SCENARIOS = ROOT / "scenarios"
 
 
 class Case:
-    """A scenario with its TS, formula and NBA (over the TS propositions)."""
+    """A scenario with its TS, formula, NBA (over the TS propositions) and executed-word semantics."""
 
     def __init__(self, name: str):
         self.path = SCENARIOS / f"{name}.yaml"
         self.scenario = load_scenario(self.path)
         self.ts = TransitionSystem(self.scenario)
         self.formula, self.nba = task_nba(self.scenario, self.ts)
+        self.relevant = relevant_mask(self.ts, self.formula)
+        self.words = ExecutedWords(self.ts, self.nba, self.relevant)
 
 
 @pytest.fixture(scope="session")

@@ -30,7 +30,7 @@ def test_json_round_trip(case1, plan1):
 
 def test_json_schema(case1, plan1):
     d = json.loads(plan1.to_json())
-    assert d["format"] == "mrodrake.plan" and d["version"] == 1
+    assert d["format"] == "mrodrake.plan" and d["version"] == 2
     assert d["scenario"] == "case_study_1" and d["planner"] == "stylus" and d["seed"] == 1
     assert d["costs"]["total"] == pytest.approx(d["costs"]["prefix"] + d["costs"]["suffix"])
     s0 = d["prefix"][0] if d["prefix"] else d["suffix"][0]
@@ -82,24 +82,24 @@ def test_verify_catches_corruption(case1, plan1):
     moved[ts.N] = (moved[ts.N] + 1) % ts.K  # teleport object o1
     bad = _corrupt(plan1, suffix=plan1.suffix[:-1] + [(tuple(moved), q)])
     with pytest.raises(PlanVerificationError):
-        bad.verify(ts, nba)
+        bad.verify(ts, nba, case1.formula)
     # wrong NBA state
     k = len(plan1.prefix) // 2
     prefix = list(plan1.prefix)
     prefix[k] = (prefix[k][0], (prefix[k][1] + 1) % nba.num_states)
     with pytest.raises(PlanVerificationError):
-        _corrupt(plan1, prefix=prefix).verify(ts, nba)
+        _corrupt(plan1, prefix=prefix).verify(ts, nba, case1.formula)
     # tampered cost
     costs = list(plan1.step_costs)
     costs[0] += 1.0
     with pytest.raises(PlanVerificationError, match="cost"):
-        _corrupt(plan1, step_costs=costs).verify(ts, nba)
+        _corrupt(plan1, step_costs=costs).verify(ts, nba, case1.formula)
     # dropped action
     acts = list(plan1.actions)
     i = next(i for i, a in enumerate(acts) if a)
     acts[i] = acts[i][1:]
     with pytest.raises(PlanVerificationError, match="actions"):
-        _corrupt(plan1, actions=acts).verify(ts, nba)
+        _corrupt(plan1, actions=acts).verify(ts, nba, case1.formula)
     assert issubclass(PlanVerificationError, AssertionError)
     assert len(run) == len(plan1.actions)
 
@@ -108,7 +108,7 @@ def test_verify_catches_corruption(case1, plan1):
     ("{not json", "malformed JSON"),
     ('{"format": "other"}', "not an mrodrake plan"),
     ('{"format": "mrodrake.plan", "version": 9}', "version"),
-    ('{"format": "mrodrake.plan", "version": 1, "scenario": "x", "formula": "", "planner": "exact", '
+    ('{"format": "mrodrake.plan", "version": 2, "scenario": "x", "formula": "", "planner": "exact", '
      '"prefix": [], "suffix": [], "actions": []}', "scenario"),
 ])
 def test_from_json_errors_are_one_line(case1, text, where):

@@ -108,7 +108,7 @@ def _reachable_on_the_fly(product):
 
 
 def test_explicit_product_matches_on_the_fly(tiny, tiny_ets):
-    product = Product(tiny.ts, tiny.nba)
+    product = Product(tiny.ts, tiny.nba, tiny.relevant)
     ep = product.build(tiny_ets)
     rows = _reachable_on_the_fly(product)
     reach = np.flatnonzero(ep.reachable())

@@ -13,6 +13,7 @@ from mrodrake.errors import UserError
 from mrodrake.planning.generate import generate_scenario
 from mrodrake.planning.plan import plan_scenario, task_nba
 from mrodrake.planning.product import Product
+from mrodrake.planning.semantics import relevant_mask
 from mrodrake.planning.stylus import Stylus
 from mrodrake.ts import TransitionSystem
 
@@ -45,10 +46,10 @@ def test_same_seed_same_plan(case1):
 
 def test_tree_invariants_after_rewiring(case1):
     """Every tree node's cost is its parent's plus χ, and every tree edge is a product transition."""
-    planner = Stylus(case1.ts, case1.nba, seed=2)
+    planner = Stylus(case1.ts, case1.nba, case1.relevant, seed=2)
     planner.run(1500)
     tree = planner.prefix_tree
-    product = Product(case1.ts, planner.nba)
+    product = Product(case1.ts, planner.nba, case1.relevant)
     assert tree.num_nodes > 100
     for v in range(1, tree.num_nodes):
         u = tree.parent[v]
@@ -62,7 +63,7 @@ def test_tree_invariants_after_rewiring(case1):
 
 def test_progress_callback_and_history(case1):
     seen = []
-    planner = Stylus(case1.ts, case1.nba, seed=0)
+    planner = Stylus(case1.ts, case1.nba, case1.relevant, seed=0)
     res = planner.run(1500, progress=seen.append)
     its = [x["iteration"] for x in seen]
     assert its == sorted(its) and its[-1] == res.stats["iterations"]
@@ -72,7 +73,7 @@ def test_progress_callback_and_history(case1):
 
 def test_time_limit_stops_early(case1):
     with pytest.raises(UserError) as e:
-        Stylus(case1.ts, case1.nba, seed=0).run(10**9, time_limit=0.05)
+        Stylus(case1.ts, case1.nba, case1.relevant, seed=0).run(10**9, time_limit=0.05)
     assert str(e.value).startswith("no plan found within") and "\n" not in str(e.value)
 
 
@@ -97,7 +98,7 @@ def test_large_generated_scenario_first_plan():
     sc = generate_scenario(10, 5, 8, 0, full=True)
     ts = TransitionSystem(sc)
     f, nba = task_nba(sc, ts)
-    res = Stylus(ts, nba, seed=0).run(200, time_limit=60.0, stop_at_first=True)
+    res = Stylus(ts, nba, relevant_mask(ts, f), seed=0).run(200, time_limit=60.0, stop_at_first=True)
     assert res.stats["first_plan_seconds"] < 60.0
     assert math.isfinite(res.prefix_cost + res.suffix_cost)
     plan = plan_scenario(sc, seed=0, iterations=res.stats["iterations"])

@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from mrodrake.planning.plan import plan_scenario, task_nba
+from mrodrake.planning.plan import plan_scenario, task_words
 from mrodrake.scenario import load_scenario
 from mrodrake.systems.supervisor import Op, StepSpec, SupState, Supervisor, _Defer
 from mrodrake.ts import Grasp, Transport
@@ -21,9 +21,9 @@ R1, R2, R3, R4, O1, O2 = 0, 1, 2, 3, 4, 5
 def setup():
     scn = load_scenario(ROOT / "scenarios" / "case_study_2.yaml")
     plan = plan_scenario(scn, "stylus", seed=0)
-    _, nba = task_nba(scn, plan.ts)
+    _, _, words = task_words(scn, plan.ts)
     couplings = [(0, (R1, R2)), (1, (R3, R4))]
-    sup = Supervisor(scn, plan.ts, nba, plan, couplings=couplings)
+    sup = Supervisor(scn, plan.ts, words, plan, couplings=couplings)
     return scn, sup
 
 

@@ -9,7 +9,9 @@ import pytest
 import shapely
 
 from mrodrake.geometry import polygon
-from mrodrake.systems.supervisor import advance_run, entity_regions, label_of
+from mrodrake.execution.monitor import WordMonitor, entity_regions
+from mrodrake.planning.plan import task_words
+from mrodrake.systems.supervisor import expand_steps
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -87,15 +89,11 @@ def test_no_jumps(mission):
 
 
 def test_monitored_run_consistent(mission):
-    """Re-run the NBA subset monitor on the logged trajectory: it never dies and, at the end of every
+    """Re-run the executed-word monitor on the logged trajectory: it never dies and, at the end of every
     executed plan step, contains the plan's NBA state."""
-    from mrodrake.systems.supervisor import expand_steps
-
     scn, plan, log, out = mission
     ts = plan.ts
-    from mrodrake.planning.plan import task_nba
-
-    _, nba = task_nba(scn, ts)
+    _, nba, words = task_words(scn, ts)
     T, P, V, radii, names = _positions(out, scn)
     centers = np.array([g.center for g in scn.regions], dtype=float)
     rr = np.array([g.radius for g in scn.regions], dtype=float)
@@ -107,20 +105,16 @@ def test_monitored_run_consistent(mission):
         rows = prim[prim["step"] == spec.index]
         t_last = max(t_last, rows["t_end"].max()) if len(rows) else t_last
         ends.append(t_last)
-    run, label, changed, k = frozenset([nba.initial]), None, False, 0
+    monitor = WordMonitor(words, entity_regions(centers, radii, P[0], rr, tol=1e-6))
+    k = 0
     for i, t in enumerate(T):
-        lab = label_of(entity_regions(centers, radii, P[i], rr, tol=1e-6), ts.K)
-        if label is None:
-            label = lab
-        elif lab != label:
-            run = advance_run(nba, run, label)
-            label, changed = lab, True
-            assert run, f"NBA run died at t={t}"
+        monitor.observe(entity_regions(centers, radii, P[i], rr, tol=1e-6))
+        assert monitor.run, f"NBA run died at t={t}"
         while k < len(steps) and ends[k] <= t + 1e-9:
-            if not changed:
-                run = advance_run(nba, run, label)
-            assert steps[k].dst_q in run, (steps[k].index, sorted(run), steps[k].dst_q)
-            changed, k = False, k + 1
+            monitor.end_step()
+            assert monitor.contains(steps[k].dst_q), (steps[k].index, monitor.states, steps[k].dst_q)
+            k += 1
+            monitor.begin_step()
     assert k == len(steps)
 
 

@@ -87,7 +87,7 @@ def test_controller_fault_ends_the_primitive(tmp_path, monkeypatch):
 
     def evaluate(self, x, xdot, m_hat, alpha_hat):
         if x[0] > 20.0:
-            return self._fault(x, "is outside the free set (test)")
+            return self._fault(x, xdot, "is outside the free set (test)")
         return original(self, x, xdot, m_hat, alpha_hat)
 
     monkeypatch.setattr(NavigationTask, "evaluate", evaluate)

@@ -1,0 +1,396 @@
+"""The executed word of sequential execution, shared by the planners, ``Plan.verify`` and the execution monitor.
+
+The paper's product (Sec. III-B) lets the NBA read one letter per TS step, the label L(s) of the step's source
+state, as if all actions of the step happened at once.  Executed one entity at a time (Sec. III-A, sequential
+execution), a step passes through labels that the plan never lists.  We define the word that execution
+produces, and plan on it:
+
+* within a TS step s → s' the releases and grasps run first (they change no label); then the region-changing
+  actions (navigations, transports) run one at a time in an *order* π chosen by the executor (stored in the
+  plan);
+* during an action each of its bodies (the robot; or the object and every team member) leaves its source
+  region once and enters its destination once (its ball crosses each rim once), in whatever interleaving the
+  geometry gives;
+* the NBA reads letters projected onto the task's propositions AP_φ (the atoms of the formula): at every body
+  crossing that changes the projected label it reads the label being left; a step without such a crossing
+  reads its source label once (the paper's reading).  The first letter of a step is therefore always the
+  projection of L(s), and L(s') is read by the next step.
+
+A product edge (s, q) → (s', q') exists iff s → s' is a TS transition and there is an order π such that for
+**every** crossing interleaving the NBA can go from q to q' reading the step's letters (:meth:`ExecutedWords.successors`).
+The planned NBA states are then states of the executed run whatever the geometry does, and a monitor that
+reads the executed word in the same way checks the plan soundly.  The computation runs on families of
+NBA-state subsets over the lattice of each action's crossings (a downset lattice of at most 3^bodies nodes)
+and a search over the orders of the actions whose crossings AP_φ can see (memoised on the set of actions left
+and the family); actions whose bodies AP_φ never mentions produce no letter and can run in any order.
+
+:func:`plan_word_graph` and :func:`check_plan_words` model-check a plan independently of the NBA run the
+planner found: every word any execution of the lasso may produce (all crossing interleavings, every suffix
+cycle) must satisfy the formula, i.e. the word graph times an NBA of ¬φ has no accepting cycle.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Iterator, Sequence
+
+import numpy as np
+from scipy.sparse import csr_matrix
+from scipy.sparse.csgraph import breadth_first_order, connected_components
+
+from mrodrake.logic.ltl import Formula, Not, atoms
+from mrodrake.logic.nba import NBA
+from mrodrake.logic.translate import translate
+from mrodrake.ts import Action, Navigate, State, Transport, TransitionSystem
+
+
+def relevant_mask(ts: TransitionSystem, formula: Formula) -> int:
+    """Bit mask of AP_φ: the TS propositions that occur in the formula."""
+    names = atoms(formula)
+    return sum(1 << b for b, p in enumerate(ts.propositions) if p in names)
+
+
+def bodies(ts: TransitionSystem, a: Action) -> tuple[int, ...]:
+    """Entities moved by a region-changing action (robots 0..N−1, objects N..N+M−1): the robot of a
+    navigation; the object, then the team, of a transport."""
+    if isinstance(a, Navigate):
+        return (a.robot,)
+    return (ts.N + a.obj,) + tuple(a.team)
+
+
+def region_changing(actions: Sequence[Action]) -> list[Action]:
+    return [a for a in actions if isinstance(a, (Navigate, Transport))]
+
+
+@dataclass(frozen=True)
+class Crossing:
+    """One body of a region-changing action: the AP_φ bit its leaving clears and the bit its entering sets
+    (−1 where AP_φ does not mention the source / destination proposition)."""
+
+    body: int
+    leave: int
+    enter: int
+
+
+def crossings(ts: TransitionSystem, relevant: int, a: Action) -> tuple[Crossing, ...]:
+    """The crossings of action ``a`` that AP_φ can see."""
+    K = ts.K
+    out = []
+    for b in bodies(ts, a):
+        lb, eb = b * K + a.src, b * K + a.dst
+        c = Crossing(b, lb if relevant >> lb & 1 else -1, eb if relevant >> eb & 1 else -1)
+        if c.leave >= 0 or c.enter >= 0:
+            out.append(c)
+    return tuple(out)
+
+
+def _events(cross: Sequence[Crossing]) -> tuple[list[tuple[int, int]], list[int]]:
+    """Crossing events (bit, +1 set / −1 clear) and, per event, the mask of events that must precede it."""
+    events, pre, leave_of = [], [], {}
+    for c in cross:
+        if c.leave >= 0:
+            leave_of[c.body] = len(events)
+            events.append((c.leave, -1))
+            pre.append(0)
+        if c.enter >= 0:
+            events.append((c.enter, +1))
+            pre.append(1 << leave_of[c.body] if c.body in leave_of else 0)
+    return events, pre
+
+
+def _apply(mask: int, event: tuple[int, int]) -> int:
+    bit, sign = event
+    return mask | (1 << bit) if sign > 0 else mask & ~(1 << bit)
+
+
+def interleavings(cross: Sequence[Crossing]) -> Iterator[list[tuple[int, int]]]:
+    """Every order of the crossing events of one action (each body leaves before it enters)."""
+    events, pre = _events(cross)
+    n = len(events)
+
+    def rec(done: int, seq: list) -> Iterator[list]:
+        if done == (1 << n) - 1:
+            yield list(seq)
+            return
+        for i in range(n):
+            if not done >> i & 1 and done & pre[i] == pre[i]:
+                seq.append(events[i])
+                yield from rec(done | 1 << i, seq)
+                seq.pop()
+
+    yield from rec(0, [])
+
+
+class ExecutedWords:
+    """The executed-word semantics (module docstring) of a TS and an NBA over ``ts.propositions``;
+    ``relevant`` is the AP_φ mask (:func:`relevant_mask`).  All queries are cached."""
+
+    def __init__(self, ts: TransitionSystem, nba: NBA, relevant: int):
+        if tuple(nba.ap) != tuple(ts.propositions):
+            raise ValueError("the NBA must be over the TS propositions (use nba.with_ap(ts.propositions))")
+        self.ts, self.nba, self.relevant = ts, nba, int(relevant)
+        self.Q = nba.num_states
+        K = ts.K
+        n_ent = ts.N + ts.M
+        self.entity_region = np.array([[bool(self.relevant >> (e * K + k) & 1) for k in range(K)]
+                                       for e in range(n_ent)], dtype=bool).reshape(n_ent, K)
+        self._succ_bits: dict[int, list[int]] = {}
+        self._delta: dict[tuple[int, int], int] = {}
+        self._lattice: dict[tuple, tuple[frozenset, int]] = {}
+        self._search_memo: dict[tuple, dict[int, tuple[int, ...]]] = {}
+        self._step: dict[tuple, list[dict[int, tuple[int, ...]]]] = {}
+        self._matrix: dict[tuple, np.ndarray] = {}
+        self._label_matrix: dict[int, np.ndarray] = {}
+
+    # ------------------------------------------------------------------------------------ NBA on subsets
+    def delta(self, S: int, letter: int) -> int:
+        """δ of a set of NBA states (bit mask) reading ``letter`` (a mask over the TS propositions)."""
+        key = (S, letter)
+        out = self._delta.get(key)
+        if out is None:
+            bits = self._succ_bits.get(letter)
+            if bits is None:
+                bits = [sum(1 << d for d in self.nba.successors(q, letter)) for q in range(self.Q)]
+                self._succ_bits[letter] = bits
+            out, q, m = 0, 0, S
+            while m:
+                if m & 1:
+                    out |= bits[q]
+                m >>= 1
+                q += 1
+            self._delta[key] = out
+        return out
+
+    # ------------------------------------------------------------------------------------ one step
+    def key(self, s: State, t: State, actions: Sequence[Action] | None = None) -> tuple[int, tuple, list[Action]]:
+        """(projected source label, crossing signature of the visible actions, those actions) of s → t."""
+        acts = region_changing(self.ts.actions(s, t) if actions is None else actions)
+        vis = [(a, c) for a in acts if (c := crossings(self.ts, self.relevant, a))]
+        return self.ts.label_mask(s) & self.relevant, tuple(c for _, c in vis), [a for a, _ in vis]
+
+    def _after_action(self, F: frozenset, mask: int, cross: tuple) -> tuple[frozenset, int]:
+        """The family of subsets after one action's crossings, over all their interleavings, and the mask."""
+        key = (F, mask, cross)
+        hit = self._lattice.get(key)
+        if hit is not None:
+            return hit
+        events, pre = _events(cross)
+        n = len(events)
+        fam: dict[int, set] = {0: set(F)}
+        masks = {0: mask}
+        for D in range(1 << n):
+            if D not in fam:
+                continue
+            letter = masks[D]
+            images = {self.delta(S, letter) for S in fam[D]}
+            for i in range(n):
+                if not D >> i & 1 and D & pre[i] == pre[i]:
+                    D2 = D | 1 << i
+                    fam.setdefault(D2, set()).update(images)
+                    masks[D2] = _apply(letter, events[i])
+        full = (1 << n) - 1
+        out = (frozenset(fam[full]), masks[full])
+        self._lattice[key] = out
+        return out
+
+    def _search(self, F: frozenset, mask: int, sig: tuple, left: int) -> dict[int, tuple[int, ...]]:
+        """q' -> an order of the visible actions still ``left`` (bit mask) that reaches q' for every
+        interleaving, from the family F."""
+        key = (F, mask, sig, left)
+        hit = self._search_memo.get(key)
+        if hit is not None:
+            return hit
+        out: dict[int, tuple[int, ...]] = {}
+        if left == 0:
+            common = -1
+            for S in F:
+                common &= S
+            q = 0
+            while common > 0:
+                if common & 1:
+                    out[q] = ()
+                common >>= 1
+                q += 1
+        else:
+            for i in range(len(sig)):
+                if left >> i & 1:
+                    F2, m2 = self._after_action(F, mask, sig[i])
+                    if 0 in F2:
+                        continue
+                    for q2, rest in self._search(F2, m2, sig, left & ~(1 << i)).items():
+                        out.setdefault(q2, (i,) + rest)
+        self._search_memo[key] = out
+        return out
+
+    def _successors_key(self, q: int, mask: int, sig: tuple) -> dict[int, tuple[int, ...]]:
+        key = (mask, sig)
+        rows = self._step.get(key)
+        if rows is None:
+            rows = [None] * self.Q
+            self._step[key] = rows
+        r = rows[q]
+        if r is None:
+            if not sig:
+                S = self.delta(1 << q, mask)
+                r = {d: () for d in range(self.Q) if S >> d & 1}
+            else:
+                r = self._search(frozenset([1 << q]), mask, sig, (1 << len(sig)) - 1)
+            rows[q] = r
+        return r
+
+    def successors(self, q: int, s: State, t: State) -> dict[int, tuple[Action, ...]]:
+        """NBA states q' of product edges (s, q) → (s', q') (s → t assumed a TS transition), each with an
+        execution order of the step's region-changing actions that reaches it for every interleaving."""
+        mask, sig, vis = self.key(s, t)
+        rows = self._successors_key(q, mask, sig)
+        acts = region_changing(self.ts.actions(s, t))
+        return {d: self._full_order(acts, vis, o) for d, o in rows.items()}
+
+    def matrix(self, s: State, t: State) -> np.ndarray:
+        """``M[q, q']``: is (s, q) → (t, q') a product edge (s → t assumed a TS transition)?"""
+        mask, sig, _ = self.key(s, t)
+        return self.matrix_for(mask, sig)
+
+    def matrix_for(self, mask: int, sig: tuple) -> np.ndarray:
+        key = (mask, sig)
+        M = self._matrix.get(key)
+        if M is None:
+            M = np.zeros((self.Q, self.Q), dtype=bool)
+            for q in range(self.Q):
+                M[q, list(self._successors_key(q, mask, sig))] = True
+            self._matrix[key] = M
+        return M
+
+    def visible(self, X: np.ndarray, Y) -> np.ndarray:
+        """``vis[r]``: does the step X[r] → Y[r] (or the reverse) move a body across a rim AP_φ mentions?
+        ``Y`` is one state or one row per row of X.  Steps without such a crossing read only their source
+        label (the paper's product)."""
+        n_ent = self.ts.N + self.ts.M
+        A = np.asarray(X)[:, :n_ent].astype(np.int64)
+        B = np.broadcast_to(np.asarray(Y, dtype=np.int64)[..., :n_ent], A.shape)
+        idx = np.arange(n_ent)
+        seen = self.entity_region[idx, A] | self.entity_region[idx, B]
+        return ((A != B) & seen).any(axis=1)
+
+    @staticmethod
+    def _full_order(acts: list[Action], vis: list[Action], order: tuple[int, ...]) -> tuple[Action, ...]:
+        """The region-changing actions in canonical order with the visible ones permuted into ``order``."""
+        seq = iter(vis[i] for i in order)
+        vis_set = set(vis)
+        return tuple(next(seq) if a in vis_set else a for a in acts)
+
+    def order(self, s: State, q: int, t: State, q2: int) -> tuple[Action, ...] | None:
+        """All actions of s → t in execution order (releases, grasps, then the region-changing actions in an
+        order reaching q2 from q for every interleaving), or None if there is none."""
+        o = self.successors(q, s, t).get(q2)
+        if o is None:
+            return None
+        acts = self.ts.actions(s, t)
+        return tuple(a for a in acts if not isinstance(a, (Navigate, Transport))) + o
+
+    def reached(self, S: int, s: State, t: State, order: Sequence[Action]) -> int:
+        """NBA states (mask) reached from the set S for EVERY interleaving of the step s → t executed in
+        ``order`` (intersection over the interleavings)."""
+        mask, _, _ = self.key(s, t)
+        vis = [c for a in region_changing(order) if (c := crossings(self.ts, self.relevant, a))]
+        if not vis:
+            return self.delta(S, mask)
+        F = frozenset([S])
+        for c in vis:
+            F, mask = self._after_action(F, mask, c)
+        common = -1
+        for T in F:
+            common &= T
+        return common
+
+    def step_words(self, s: State, t: State, order: Sequence[Action]) -> Iterator[list[int]]:
+        """Every word (projected letters) that executing s → t in ``order`` may produce."""
+        m0 = self.ts.label_mask(s) & self.relevant
+        vis = [c for a in region_changing(order) if (c := crossings(self.ts, self.relevant, a))]
+        if not vis:
+            yield [m0]
+            return
+
+        def rec(k: int, mask: int, word: list) -> Iterator[list[int]]:
+            if k == len(vis):
+                yield list(word)
+                return
+            for seq in interleavings(vis[k]):
+                m, w = mask, list(word)
+                for ev in seq:
+                    w.append(m)
+                    m = _apply(m, ev)
+                yield from rec(k + 1, m, w)
+
+        yield from rec(0, m0, [])
+
+
+# ---------------------------------------------------------------------------------------- plan words
+def plan_word_graph(ts: TransitionSystem, relevant: int, steps: Sequence[tuple[State, State, Sequence[Action]]],
+                    loop_start: int) -> tuple[list[tuple[int, int, int]], int]:
+    """The graph of every word executing ``steps`` may produce: positions are nodes, an edge (u, v, letter)
+    reads one letter; step k starts at node k (its crossing lattices get fresh nodes) and the last step
+    loops back to node ``loop_start`` (the first suffix step).  Returns (edges, number of nodes)."""
+    n_steps = len(steps)
+    edges: list[tuple[int, int, int]] = []
+    nodes = n_steps
+    for k, (s, t, order) in enumerate(steps):
+        end = k + 1 if k + 1 < n_steps else loop_start
+        mask = ts.label_mask(s) & relevant
+        vis = [c for a in region_changing(order) if (c := crossings(ts, relevant, a))]
+        if not vis:
+            edges.append((k, end, mask))
+            continue
+        start = k
+        for i, cross in enumerate(vis):
+            events, pre = _events(cross)
+            n = len(events)
+            full = (1 << n) - 1
+            ids = {0: start}
+            last = i == len(vis) - 1
+            masks = {0: mask}
+            for D in range(1 << n):
+                if D not in ids:
+                    continue
+                for j in range(n):
+                    if not D >> j & 1 and D & pre[j] == pre[j]:
+                        D2 = D | 1 << j
+                        if D2 not in ids:
+                            if D2 == full and last:
+                                ids[D2] = end
+                            else:
+                                ids[D2] = nodes
+                                nodes += 1
+                            masks[D2] = _apply(masks[D], events[j])
+                        edges.append((ids[D], ids[D2], masks[D]))
+            start, mask = ids[full], masks[full]
+    return edges, nodes
+
+
+def check_plan_words(ts: TransitionSystem, formula: Formula, steps: Sequence[tuple[State, State, Sequence[Action]]],
+                     loop_start: int) -> bool:
+    """Does every word of :func:`plan_word_graph` satisfy ``formula``?  (No accepting lasso of the word
+    graph times the NBA of ¬φ, translated afresh: independent of the planner's NBA run.)"""
+    relevant = relevant_mask(ts, formula)
+    edges, n = plan_word_graph(ts, relevant, steps, loop_start)
+    neg = translate(Not(formula)).with_ap(ts.propositions)
+    P = neg.num_states
+    rows, cols = [], []
+    for u, v, letter in edges:
+        for p in range(P):
+            for p2 in neg.successors(p, letter):
+                rows.append(u * P + p)
+                cols.append(v * P + p2)
+    size = n * P
+    g = csr_matrix((np.ones(len(rows), dtype=np.int8), (rows, cols)), shape=(size, size))
+    reach = np.zeros(size, dtype=bool)
+    reach[breadth_first_order(g, neg.initial, directed=True, return_predecessors=False)] = True
+    _, comp = connected_components(g, directed=True, connection="strong")
+    for x in np.flatnonzero(reach):
+        if int(x) % P not in neg.accepting:
+            continue
+        same = comp == comp[x]
+        lo, hi = g.indptr[x], g.indptr[x + 1]
+        if np.any(same[g.indices[lo:hi]]):  # x lies on a cycle of its component
+            return False
+    return True
