@@ -43,14 +43,12 @@ from pydantic import ConfigDict, Field, TypeAdapter
 from pydantic.dataclasses import dataclass
 
 from mrodrake.errors import UserError
-from mrodrake.scenario import Scenario, Where, format_path, load_scenario, parse_typed, read_text
+from mrodrake.scenario import (NonNegNum, PosNum, Scenario, Str, Where, format_path, load_scenario, parse_typed,
+                               read_text)
 
 _CFG = ConfigDict(extra="forbid")
 PosInt = Annotated[int, Field(strict=True, gt=0)]
 NonNegInt = Annotated[int, Field(strict=True, ge=0)]
-PosNum = Annotated[float, Field(strict=True, gt=0, allow_inf_nan=False)]
-NonNegNum = Annotated[float, Field(strict=True, ge=0, allow_inf_nan=False)]
-Str = Annotated[str, Field(strict=True)]
 Bool = Annotated[bool, Field(strict=True)]
 InjectMode = Literal["raise", "crash", "hang"]
 
@@ -87,20 +85,22 @@ class Generate:
 
 
 @dataclass(frozen=True, config=_CFG)
-class ScenarioEntry:
-    """One entry of ``scenarios``: a scenario ``file`` (relative to the spec) or ``generate`` sizes."""
-
-    file: Str | None = None
-    generate: Generate | None = None
-
-
-@dataclass(frozen=True, config=_CFG)
 class Seeds:
     """Planner seeds, layout seeds (P_s initial positions and goal points) and parameter draws per pair."""
 
     plan: SeedRange = dc_field(default_factory=SeedRange)
     layout: SeedRange = dc_field(default_factory=SeedRange)
     draws: PosInt = 1
+
+
+@dataclass(frozen=True, config=_CFG)
+class ScenarioEntry:
+    """One entry of ``scenarios``: a scenario ``file`` (relative to the spec) or ``generate`` sizes, and
+    optionally its own ``seeds`` (default: the campaign's)."""
+
+    file: Str | None = None
+    generate: Generate | None = None
+    seeds: Seeds | None = None
 
 
 @dataclass(frozen=True, config=_CFG)
@@ -128,6 +128,7 @@ class CampaignSpec:
     description: Str = ""
     planner: Literal["stylus", "exact"] = "stylus"
     iterations: PosInt | None = None
+    plan_time_limit: PosNum | None = None
     suffix_cycles: NonNegInt = 1
     time_limit: PosNum = 600.0
     seeds: Seeds = dc_field(default_factory=Seeds)
@@ -161,6 +162,7 @@ class MissionTask:
     params: dict
     planner: str
     iterations: int | None
+    plan_time_limit: float | None
     suffix_cycles: int
     time_limit: float
     inject: str | None = None
@@ -175,7 +177,7 @@ class MissionTask:
         """Hash of every input that can change the row (a resumed mission must match it)."""
         data = {"scenario": dataclasses.asdict(self.instance.scenario), "plan_seed": self.plan_seed,
                 "layout_seed": self.layout_seed, "params": self.params, "planner": self.planner,
-                "iterations": self.iterations, "suffix_cycles": self.suffix_cycles,
+                "iterations": self.iterations, "plan_time_limit": self.plan_time_limit, "suffix_cycles": self.suffix_cycles,
                 "time_limit": self.time_limit, "inject": self.inject}
         return hashlib.sha256(json.dumps(data, sort_keys=True, default=str).encode()).hexdigest()[:16]
 
@@ -186,7 +188,6 @@ class Campaign:
 
     spec: CampaignSpec
     path: Path
-    instances: list[ScenarioInstance]
     tasks: list[MissionTask]
 
 
@@ -199,29 +200,42 @@ def _check_range(values: list[float], loc: tuple, where: Where) -> tuple[float, 
     return lo, hi
 
 
-def _instances(spec: CampaignSpec, where: Where, base: Path) -> list[ScenarioInstance]:
+def _check_seeds(spec: CampaignSpec, seeds: Seeds, loc: tuple, where: Where) -> None:
+    if spec.planner == "exact" and seeds.plan.count > 1:
+        raise UserError(f"{where(loc + ('plan', 'count'))}: the exact planner takes no seed; use count 1")
+    if spec.randomize.initial_positions and seeds.layout.count > 1:
+        raise UserError(f"{where(loc + ('layout', 'count'))}: randomize.initial_positions draws the layout "
+                        "seed of every mission; use count 1")
+
+
+def _instances(spec: CampaignSpec, where: Where, base: Path) -> list[tuple[ScenarioInstance, Seeds]]:
+    """Every scenario of the spec with the seeds of its entry (files loaded, generated ones generated)."""
     from mrodrake.planning.generate import MAX_K, generate_scenario
 
-    out: list[ScenarioInstance] = []
+    out: list[tuple[ScenarioInstance, Seeds]] = []
     seen: dict[str, tuple] = {}
 
-    def add(inst: ScenarioInstance, loc: tuple) -> None:
+    def add(inst: ScenarioInstance, seeds: Seeds, loc: tuple) -> None:
         if inst.key in seen:
             raise UserError(f"{where(loc)}: scenario '{inst.key}' appears twice (also {format_path(seen[inst.key])})")
         seen[inst.key] = loc
-        out.append(inst)
+        out.append((inst, seeds))
 
     if not spec.scenarios:
         raise UserError(f"{where(('scenarios',))}: at least one scenario entry is required")
+    _check_seeds(spec, spec.seeds, ("seeds",), where)
     for i, entry in enumerate(spec.scenarios):
         loc = ("scenarios", i)
         if (entry.file is None) == (entry.generate is None):
             raise UserError(f"{where(loc)}: give exactly one of 'file' and 'generate'")
+        seeds = spec.seeds if entry.seeds is None else entry.seeds
+        if entry.seeds is not None:
+            _check_seeds(spec, seeds, loc + ("seeds",), where)
         if entry.file is not None:
             path = Path(entry.file) if Path(entry.file).is_absolute() else base / entry.file
             if not path.is_file():
                 raise UserError(f"{where(loc + ('file',))}: no such file '{entry.file}' (relative to the spec)")
-            add(ScenarioInstance(path.stem, path.stem, entry.file, load_scenario(path)), loc + ("file",))
+            add(ScenarioInstance(path.stem, path.stem, entry.file, load_scenario(path)), seeds, loc + ("file",))
             continue
         gen = entry.generate
         for name, values in (("robots", gen.robots), ("objects", gen.objects), ("regions", gen.regions)):
@@ -239,7 +253,7 @@ def _instances(spec: CampaignSpec, where: Where, base: Path) -> list[ScenarioIns
                             scenario = generate_scenario(n, m, k, seed)
                         except (ValueError, UserError) as e:
                             raise UserError(f"{where(loc + ('generate',))}: {text}: {e}") from None
-                        add(ScenarioInstance(scenario.name, f"gen_n{n}_m{m}_k{k}", text, scenario),
+                        add(ScenarioInstance(scenario.name, f"gen_n{n}_m{m}_k{k}", text, scenario), seeds,
                             loc + ("generate",))
     return out
 
@@ -284,30 +298,25 @@ def load_campaign(path: str | Path) -> Campaign:
     r = spec.randomize
     for name in ("robot_mass", "object_mass", "friction_scale", "friction_frequency"):
         _check_range(getattr(r, name), ("randomize", name), where)
-    if spec.planner == "exact" and spec.seeds.plan.count > 1:
-        raise UserError(f"{where(('seeds', 'plan', 'count'))}: the exact planner takes no seed; use count 1")
-    if spec.planner == "exact" and spec.iterations is not None:
-        raise UserError(f"{where(('iterations',))}: only for the stylus planner")
-    if r.initial_positions and spec.seeds.layout.count > 1:
-        raise UserError(f"{where(('seeds', 'layout', 'count'))}: randomize.initial_positions draws the layout "
-                        "seed of every mission; use count 1")
-    instances = _instances(spec, where, path.resolve().parent)
+    for name in ("iterations", "plan_time_limit"):
+        if spec.planner == "exact" and getattr(spec, name) is not None:
+            raise UserError(f"{where((name,))}: only for the stylus planner")
     tasks = []
-    for inst in instances:
-        for ps in spec.seeds.plan.values():
-            for ls in spec.seeds.layout.values():
-                for d in range(spec.seeds.draws):
+    for inst, seeds in _instances(spec, where, path.resolve().parent):
+        for ps in seeds.plan.values():
+            for ls in seeds.layout.values():
+                for d in range(seeds.draws):
                     mid = f"{inst.key}-p{ps}-l{ls}-d{d}"
                     params, drawn = draw_parameters(spec, inst.scenario, mid)
                     tasks.append(MissionTask(len(tasks), mid, inst, ps, ls if drawn is None else drawn, d, params,
-                                             spec.planner, spec.iterations, spec.suffix_cycles,
-                                             float(spec.time_limit), None))
+                                             spec.planner, spec.iterations, spec.plan_time_limit,
+                                             spec.suffix_cycles, float(spec.time_limit), None))
     for idx, mode in spec.inject.items():
         if idx >= len(tasks):
             raise UserError(f"{where(('inject', idx))}: mission index {idx} out of range (the campaign has "
                             f"{len(tasks)} missions, 0..{len(tasks) - 1})")
         tasks[idx] = dataclasses.replace(tasks[idx], inject=mode)
-    return Campaign(spec, path, instances, tasks)
+    return Campaign(spec, path, tasks)
 
 
 # ------------------------------------------------------------------------------------------ failure kinds
@@ -460,7 +469,7 @@ def execute(task: MissionTask) -> dict:
     stage, log, timer, stopped = "plan", None, None, threading.Event()
     try:
         seed = None if task.planner == "exact" else task.plan_seed
-        limit = task.time_limit if task.planner == "stylus" else None
+        limit = min(task.plan_time_limit or math.inf, task.time_limit) if task.planner == "stylus" else None
         plan = plan_scenario(scenario, task.planner, seed=seed, iterations=task.iterations, time_limit=limit)
         row["plan_wall_seconds"] = time.perf_counter() - t0
         stage = "mission"
@@ -574,7 +583,10 @@ class LocalEngine:
                 while pending and len(running) < self.workers:
                     task = pending.popleft()
                     receive, send = ctx.Pipe(duplex=False)
-                    log_path = str(log_dir / f"{task.mission_id}.log") if log_dir is not None else None
+                    log_path = None
+                    if log_dir is not None:
+                        (log_dir / task.mission_id).mkdir(parents=True, exist_ok=True)
+                        log_path = str(log_dir / task.mission_id / "worker.log")
                     proc = ctx.Process(target=_local_worker, args=(send, task, log_path), daemon=True,
                                        name=f"mission-{task.index}")
                     proc.start()

@@ -289,19 +289,23 @@ _PYDANTIC_MESSAGES = {
 }
 
 
+def _bound(value) -> str:
+    return format(value, "g") if isinstance(value, (int, float)) else str(value)
+
+
 def _pydantic_message(err: dict) -> str:
     kind = err["type"]
     msg = _PYDANTIC_MESSAGES.get(kind)
     if msg is None:
         ctx = err.get("ctx") or {}
         if kind == "greater_than":
-            return f"must be > {ctx.get('gt')}"
+            return f"must be > {_bound(ctx.get('gt'))}"
         if kind == "greater_than_equal":
-            return f"must be >= {ctx.get('ge')}"
+            return f"must be >= {_bound(ctx.get('ge'))}"
         if kind == "less_than_equal":
-            return f"must be <= {ctx.get('le')}"
+            return f"must be <= {_bound(ctx.get('le'))}"
         if kind == "less_than":
-            return f"must be < {ctx.get('lt')}"
+            return f"must be < {_bound(ctx.get('lt'))}"
         msg = err["msg"]
     return msg
 
