@@ -421,7 +421,7 @@ def trajectory_metrics(scenario: Scenario, trajectory) -> dict:
 
 # ------------------------------------------------------------------------------------------ one mission
 #: Row columns that measure time on the machine (they differ between runs and engines).
-TIMING_COLUMNS = ("plan_wall_seconds", "sim_wall_seconds", "wall_seconds", "real_time_factor")
+TIMING_COLUMNS = ("plan_wall_seconds", "sim_wall_seconds", "wall_seconds", "cpu_seconds", "real_time_factor")
 
 
 def base_row(task: MissionTask) -> dict:
@@ -441,7 +441,7 @@ def base_row(task: MissionTask) -> dict:
                               for n, p in task.params.items()}),
         "ok": False, "failure_kind": "", "failure_message": "", "steps_done": None, "steps_total": None,
         "sim_seconds": None, "plan_wall_seconds": None, "sim_wall_seconds": None, "wall_seconds": None,
-        "real_time_factor": None, "min_clearance": None, "min_clearance_entity": "", "min_gap": None,
+        "cpu_seconds": None, "real_time_factor": None, "min_clearance": None, "min_clearance_entity": "", "min_gap": None,
         "min_gap_pair": "", "max_speed": None, "max_speed_entity": "", "nan_seen": False,
     }
 
@@ -453,12 +453,33 @@ def failure_row(task: MissionTask, kind: str, message: str, wall: float) -> dict
     return row
 
 
+def _record_log(row: dict, task: MissionTask, scenario: Scenario, log, stopped: bool) -> None:
+    """Fill ``row`` from a mission log: progress, timings, the outcome (unless an exception already set
+    the failure), the trajectory metrics; write the mission's outputs with ``--keep-runs``."""
+    row.update(steps_done=int(log.steps_done), steps_total=int(log.steps_total), sim_seconds=float(log.sim_seconds),
+               sim_wall_seconds=float(log.wall_seconds),
+               real_time_factor=float(log.sim_seconds / log.wall_seconds) if log.wall_seconds > 0 else None)
+    if not row["failure_kind"]:
+        row["ok"] = bool(log.ok)
+        if stopped and not log.ok:
+            row.update(failure_kind="timeout", failure_message=(
+                f"time limit {task.time_limit:g} s reached after {log.steps_done}/{log.steps_total} plan steps "
+                f"(simulated {log.sim_seconds:.0f} s)"))
+        elif not log.ok:
+            msg = _first_line(log.message)
+            kind = getattr(log, "failure_kind", None) or classify("mission", msg, DEFAULT_KINDS["log"])
+            row.update(failure_kind=str(kind), failure_message=msg)
+    row.update(trajectory_metrics(scenario, log.trajectory))
+    if task.run_dir is not None:
+        log.write(task.run_dir)
+
+
 def execute(task: MissionTask) -> dict:
     """Plan and simulate one mission and return its row; never raises for a failing mission."""
     from mrodrake.planning.plan import plan_scenario
     from mrodrake.systems.mission import Mission
 
-    t0 = time.perf_counter()
+    t0, cpu0 = time.perf_counter(), time.process_time()
     row = base_row(task)
     if task.inject == "crash":
         os.abort()
@@ -466,7 +487,7 @@ def execute(task: MissionTask) -> dict:
         while True:
             time.sleep(1.0)
     scenario = randomized_scenario(task.instance.scenario, task.params)
-    stage, log, timer, stopped = "plan", None, None, threading.Event()
+    stage, mission, log, timer, stopped = "plan", None, None, None, threading.Event()
     try:
         seed = None if task.planner == "exact" else task.plan_seed
         limit = min(task.plan_time_limit or math.inf, task.time_limit) if task.planner == "stylus" else None
@@ -498,22 +519,15 @@ def execute(task: MissionTask) -> dict:
     finally:
         if timer is not None:
             timer.cancel()
-    if log is not None:
-        row.update(ok=bool(log.ok), steps_done=int(log.steps_done), steps_total=int(log.steps_total),
-                   sim_seconds=float(log.sim_seconds), sim_wall_seconds=float(log.wall_seconds),
-                   real_time_factor=float(log.sim_seconds / log.wall_seconds) if log.wall_seconds > 0 else None)
-        if stopped.is_set() and not log.ok:
-            row.update(failure_kind="timeout", failure_message=(
-                f"time limit {task.time_limit:g} s reached after {log.steps_done}/{log.steps_total} plan steps "
-                f"(simulated {log.sim_seconds:.0f} s)"))
-        elif not log.ok:
-            msg = _first_line(log.message)
-            kind = getattr(log, "failure_kind", None) or classify("mission", msg, DEFAULT_KINDS["log"])
-            row.update(failure_kind=str(kind), failure_message=msg)
-        row.update(trajectory_metrics(scenario, log.trajectory))
-        if task.run_dir is not None:
-            log.write(task.run_dir)
-    row["wall_seconds"] = time.perf_counter() - t0
+    try:
+        if log is None and mission is not None:
+            log = mission.log()  # what was simulated before the exception
+        if log is not None:
+            _record_log(row, task, scenario, log, stopped.is_set())
+    except Exception as e:  # the metrics or outputs of a finished mission: still a row, never a lost worker
+        row.update(ok=False, failure_kind=row["failure_kind"] or "exception",
+                   failure_message=row["failure_message"] or f"recording: {type(e).__name__}: {_first_line(e)}")
+    row["wall_seconds"], row["cpu_seconds"] = time.perf_counter() - t0, time.process_time() - cpu0
     if task.run_dir is not None:
         Path(task.run_dir).mkdir(parents=True, exist_ok=True)
         (Path(task.run_dir) / "row.json").write_text(json.dumps(row, indent=1, default=str), encoding="utf-8")

@@ -313,3 +313,24 @@ seeds: {{draws: 2}}
     assert [t.index for t in camp.tasks] == list(range(8))
     assert {t.instance.family for t in camp.tasks} == {"tiny", "gen_n2_m1_k3", "gen_n2_m1_k4"}
     assert camp.tasks[4].instance.source == "generate_scenario(2, 1, 3, 7)"
+
+
+def test_an_exception_during_the_simulation_keeps_what_was_simulated(tmp_path, monkeypatch):
+    from mrodrake.campaign import execute
+    from mrodrake.systems import mission
+
+    run = mission.Mission.run
+
+    def failing_run(self, progress=None, t_max=1e7):
+        def fail_at_step_2(done, total):
+            if done >= 2:
+                raise RuntimeError("Error control wants to select step smaller than minimum allowed (1e-14)")
+        return run(self, fail_at_step_2, t_max)
+
+    monkeypatch.setattr(mission.Mission, "run", failing_run)
+    (task,) = load_campaign(write(tmp_path, f"name: x\nscenarios:\n  - file: {TINY}\n")).tasks
+    row = execute(task)
+    assert not row["ok"] and row["failure_kind"] == "integrator"
+    assert row["failure_message"].startswith("RuntimeError: Error control wants to select step smaller")
+    assert row["steps_done"] == 2 and row["steps_total"] > 2 and row["sim_seconds"] > 0
+    assert row["min_clearance"] > 0 and row["cpu_seconds"] > 0
