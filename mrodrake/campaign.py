@@ -585,11 +585,19 @@ class LocalEngine:
 
     def __init__(self, workers: int | None = None):
         self.workers = int(workers or os.cpu_count() or 1)
+        self._ctx = None
+
+    def open(self) -> None:
+        """Start the fork server (imports Drake and mrodrake once)."""
+        self._ctx = _forkserver_context()
+
+    def close(self) -> None:
+        """Nothing to release: the fork server ends with this process."""
 
     def run(self, tasks: Iterable[MissionTask], on_row: Callable[[dict], None], log_dir: Path | None = None) -> None:
         from multiprocessing.connection import wait
 
-        ctx = _forkserver_context()
+        ctx = self._ctx or _forkserver_context()
         pending = deque(tasks)
         running: dict = {}
         try:
@@ -611,7 +619,7 @@ class LocalEngine:
                     task, proc, t0 = running.pop(conn)
                     try:
                         row = conn.recv()
-                    except (EOFError, OSError):
+                    except Exception:  # EOF or a message cut short: the worker died before sending its row
                         row = None
                     conn.close()
                     proc.join(timeout=30.0)
@@ -649,22 +657,40 @@ class RayEngine:
 
     def __init__(self, workers: int | None = None, address: str | None = None):
         self.workers, self.address = workers, address
+        self._started = False
 
-    def run(self, tasks: Iterable[MissionTask], on_row: Callable[[dict], None], log_dir: Path | None = None) -> None:
+    def open(self) -> None:
+        """Join ``address``, or start a local Ray with ``workers`` CPUs, unless Ray is initialised."""
         import logging
 
         try:
             import ray
         except ImportError:
             raise UserError("--engine ray: Ray is not installed (pip install -e \".[ray]\")") from None
-        started = False
-        if not ray.is_initialized():
-            kw = {"include_dashboard": False, "log_to_driver": False, "logging_level": logging.WARNING}
-            if self.address:
+        if ray.is_initialized():
+            return
+        kw = {"include_dashboard": False, "log_to_driver": False, "logging_level": logging.WARNING}
+        if self.address:
+            try:
                 ray.init(address=self.address, **kw)
-            else:
-                ray.init(num_cpus=self.workers, **kw)
-            started = True
+            except (ConnectionError, RuntimeError, ValueError) as e:
+                raise UserError(f"--address: cannot join the Ray cluster at '{self.address}': "
+                                f"{_first_line(e)}") from None
+        else:
+            ray.init(num_cpus=self.workers, **kw)
+        self._started = True
+
+    def close(self) -> None:
+        """Shut down the Ray that :meth:`open` started (a joined or given one stays up)."""
+        if self._started:
+            import ray
+
+            ray.shutdown()
+            self._started = False
+
+    def run(self, tasks: Iterable[MissionTask], on_row: Callable[[dict], None], log_dir: Path | None = None) -> None:
+        import ray
+
         remote = ray.remote(num_cpus=1, max_retries=0, runtime_env={"env_vars": WORKER_ENV})(execute)
         capacity = int(self.workers or max(1, int(ray.cluster_resources().get("CPU", 1))))
         pending = deque(tasks)
@@ -695,8 +721,6 @@ class RayEngine:
         finally:
             for ref in running:
                 ray.cancel(ref, force=True)
-            if started:
-                ray.shutdown()
 
 
 # ------------------------------------------------------------------------------------------ campaign run
@@ -764,6 +788,8 @@ def run_campaign(spec_path: str | Path, out: str | Path | None = None, engine: s
             "started": time.strftime("%Y-%m-%d %H:%M:%S")}
     (out / "campaign.json").write_text(json.dumps(meta, indent=1), encoding="utf-8")
     fingerprints = {t.mission_id: t.fingerprint() for t in camp.tasks}
+    if todo:
+        runner.open()
     bar = tqdm(total=len(camp.tasks), initial=skipped, desc=camp.spec.name, unit="mission", file=sys.stderr,
                disable=not progress, dynamic_ncols=True)
 
@@ -798,6 +824,7 @@ def run_campaign(spec_path: str | Path, out: str | Path | None = None, engine: s
             interrupted = True
         finally:
             bar.close()
+            runner.close()
     wall = time.perf_counter() - t0
     ordered = [rows[t.mission_id] for t in camp.tasks if t.mission_id in rows]
     df = pd.DataFrame(ordered, columns=list(base_row(camp.tasks[0]).keys()) if camp.tasks else None)
