@@ -178,3 +178,11 @@ def test_cli_validate_ok_and_errors(tmp_path):
     assert "Traceback" not in res.stderr
     lines = res.stderr.strip().splitlines()
     assert len(lines) == 1 and "robots[1].power" in lines[0] and lines[0].startswith("error: ")
+
+
+def test_deeply_nested_task_formulas():
+    """3,000 parentheses load; a tree deeper than the LTL limit is rejected at its operator, one line."""
+    data = copy.deepcopy(TINY)
+    data["task"]["formula"] = "(" * 3000 + "F G o1_p3 & G F home" + ")" * 3000
+    _load(data)
+    _reject(lambda d: d["task"].update(formula="X " * 300 + "home"), "task.formula:203:", "nested deeper than 200")

@@ -40,7 +40,9 @@ from typing import NamedTuple, Sequence
 
 import numpy as np
 
-from mrodrake.control.navfunc import TAU_FRACTION, desired_velocity, phi_terms
+from mrodrake.control.navfunc import TAU_FRACTION, desired_velocity, outside_free_set, phi_terms
+
+_ORIGIN = np.zeros(2)
 
 #: Default speed bound v_max (m/s) of the desired velocity (module docstring).
 V_MAX = 2.0
@@ -153,8 +155,9 @@ class LocalBarrierNavigationFunction:
 
     def evaluate(self, chi) -> tuple[float, np.ndarray, np.ndarray]:
         """(φ, ∇φ, ∇²φ) at χ (shape (2,))."""
-        return phi_terms(np.asarray(chi, dtype=float), self.goal, self.obstacles, self.rho0, self.taus, self.k1,
-                         self.k2)
+        b = self.obstacles
+        return phi_terms(np.asarray(chi, dtype=float), self.goal, _ORIGIN, self.rho0, b, np.zeros(len(b)),
+                         self.taus, self.k1, self.k2)
 
 
 def local_barriers(goal, obstacles, starts=(), *, rho_cap: float, tau_cap: float,
@@ -205,7 +208,13 @@ def local_barriers(goal, obstacles, starts=(), *, rho_cap: float, tau_cap: float
 
 
 class ControlEval(NamedTuple):
-    """Everything one evaluation of the law produces (per state and estimates)."""
+    """Everything one evaluation of the law produces (per state and estimates).
+
+    ``fault`` is empty where the law is defined; otherwise it says why not (the state is past a barrier's
+    pole, i.e. outside the free set, or the map is degenerate there), u and the rates are zero, and the
+    mission ends the primitive as soon as an accepted integration step gets there (the controller system's ``fault``).
+    Zero, not NaN: Drake's error control shrinks the step forever on a NaN or infinite derivative instead
+    of reaching its minimum step size, while the jump to zero past the pole makes it reject the trial."""
 
     u: np.ndarray  # entity input (2,)
     m_hat_dot: float
@@ -213,6 +222,10 @@ class ControlEval(NamedTuple):
     v_d: np.ndarray
     vdot_d: np.ndarray
     e_v: np.ndarray
+    fault: str = ""
+
+
+_ZERO2 = np.zeros(2)
 
 
 @dataclass(frozen=True)
@@ -254,18 +267,25 @@ class NavigationTask:
         return cls(pw_map, nf, goal, gains, load_sharing(cf), float(v_max), label)
 
     def evaluate(self, x: np.ndarray, xdot: np.ndarray, m_hat: float, alpha_hat: float) -> ControlEval:
-        """The entity's law u and the adaptation rates at state (x, ẋ) and estimates (m̂, α̂)."""
+        """The entity's law u and the adaptation rates at state (x, ẋ) and estimates (m̂, α̂); a
+        :class:`ControlEval` with a ``fault`` where the law is undefined."""
         g = self.gains
         with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-            v_raw, vdot_raw, J, grad = desired_velocity(self.pw_map, self.nf, x, xdot)
+            v_raw, vdot_raw, J, grad, phi = desired_velocity(self.pw_map, self.nf, x, xdot)
+        if outside_free_set(phi):
+            return self._fault(x, "is outside the free set (past a barrier of the navigation function)")
         if not (np.all(np.isfinite(v_raw)) and np.all(np.isfinite(vdot_raw))):
-            raise RuntimeError(f"point-world map degenerate at x = ({x[0]:.4f}, {x[1]:.4f}) (det J_H = "
-                               f"{np.linalg.det(J):.3g}): the entity left the region the map resolves")
+            return self._fault(x, f"is where the point-world map is degenerate (det J_H = {np.linalg.det(J):.3g}):"
+                                  " the entity left the region the map resolves")
         v_d, vdot_d = saturate_velocity(v_raw, vdot_raw, self.v_max)
         e_v = xdot - v_d
         u = navigation_input(J, grad, vdot_d, e_v, m_hat, alpha_hat, g.k_phi, g.k_v)
         dm, da = adaptation_rates(e_v, vdot_d, g.k_m, g.k_alpha)
         return ControlEval(u, dm, da, v_d, vdot_d, e_v)
+
+    def _fault(self, x: np.ndarray, why: str) -> ControlEval:
+        where = f"x = ({x[0]:.4f}, {x[1]:.4f}) {why}"
+        return ControlEval(_ZERO2, 0.0, 0.0, _ZERO2, _ZERO2, _ZERO2, where)
 
     def __deepcopy__(self, memo):
         """Tasks are immutable once built: Drake's abstract-value clones share them instead of copying."""

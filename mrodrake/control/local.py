@@ -39,7 +39,7 @@ import numpy as np
 from scipy.sparse.csgraph import dijkstra
 
 from mrodrake.control.adaptive import V_MAX, AdaptiveGains, NavigationTask, load_sharing
-from mrodrake.control.navfunc import TAU_FRACTION, beta
+from mrodrake.control.navfunc import TAU_FRACTION, phi_terms
 
 #: Clearance (m) the planned legs keep from the grown disks (half of it is required of every leg).
 PATH_CLEARANCE = 0.1
@@ -88,23 +88,9 @@ class DiskWorldNavigationFunction:
         return np.concatenate([[self.rim_radius**2 - r @ r], np.einsum("ij,ij->i", diff, diff) - self.radii**2])
 
     def evaluate(self, x) -> tuple[float, np.ndarray, np.ndarray]:
-        """(φ, ∇φ, ∇²φ) at x."""
-        x = np.asarray(x, dtype=float)
-        e = x - self.goal
-        value, grad, hess = self.k1 * float(e @ e), 2.0 * self.k1 * e, 2.0 * self.k1 * np.eye(2)
-        d = self.distances(x)
-        taus = np.concatenate([[self.tau0], self.taus])
-        active = np.flatnonzero((taus > 0.0) & (d < taus))
-        if len(active) == 0:
-            return value, grad, hess
-        grad_d = np.vstack([-2.0 * (x - self.rim_center), 2.0 * (x - self.centers)])[active]
-        hess_d = np.where(active == 0, -2.0, 2.0)
-        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-            b, db, ddb = beta(d[active], taus[active])
-        value += self.k2 * float(np.sum(b - 1.0))
-        grad = grad + self.k2 * (db @ grad_d)
-        hess = hess + self.k2 * (float(db @ hess_d) * np.eye(2) + (grad_d.T * ddb) @ grad_d)
-        return value, grad, hess
+        """(φ, ∇φ, ∇²φ) at x (φ = +∞ past a barrier's pole: inside a grown disk or outside the rim)."""
+        return phi_terms(np.asarray(x, dtype=float), self.goal, self.rim_center, self.rim_radius, self.centers,
+                         self.radii, np.concatenate([[self.tau0], self.taus]), self.k1, self.k2)
 
 
 def _segment_distances(p: np.ndarray, q: np.ndarray, centers: np.ndarray) -> np.ndarray:

@@ -10,12 +10,14 @@ subtracted in φ so that φ(χ_d) = 0 (property 2 of the definition); this shift
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
 
 R_BAR_CAP = 0.1  # scenario default for r̄ (an upper bound; the map's b_ℓ may force a smaller one)
 TAU_FRACTION = 0.9  # τ = TAU_FRACTION × min(r̄², r̄_d): strictly inside the interval of Prop. 1
+_ORIGIN = np.zeros(2)
 
 
 def beta(x, tau: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -76,29 +78,52 @@ def select_tau(goal, obstacles, *, r_bar_cap: float = R_BAR_CAP, tau_cap: float 
     return tau, rb, rd
 
 
-def phi_terms(chi: np.ndarray, goal: np.ndarray, obstacles: np.ndarray, rho0: float, taus, k1: float,
-              k2: float) -> tuple[float, np.ndarray, np.ndarray]:
-    """(φ, ∇φ, ∇²φ) at χ with d_0 = ρ₀² − ‖χ‖², d_ℓ = ‖χ − b_ℓ‖² and region(s) of influence ``taus`` (one for
-    all, or one per barrier ℓ = 0..L); only barriers with d_ℓ < τ_ℓ contribute (β' = β'' = 0 beyond)."""
+#: Relative rounding bound of a barrier distance d = ‖χ − c‖² − ρ² (d_0 = ρ² − ‖χ − c‖²): with every term of
+#: magnitude at most s = (‖χ‖ + ‖c‖)² + ρ², the computed d is within POLE_ULPS · ε · s of the exact one.
+POLE_ULPS = 8.0
+_EPS = float(np.finfo(float).eps)
+
+
+def phi_terms(chi: np.ndarray, goal: np.ndarray, rim_center, rim_radius: float, centers: np.ndarray,
+              radii, taus, k1: float, k2: float) -> tuple[float, np.ndarray, np.ndarray]:
+    """(φ, ∇φ, ∇²φ) at χ of φ = k1‖χ − χ_d‖² + k2 Σ_ℓ (β_ℓ(d_ℓ) − 1) with the rim barrier
+    d_0 = R² − ‖χ − c_0‖² and disk barriers d_ℓ = ‖χ − c_ℓ‖² − ρ_ℓ² (ρ_ℓ = 0: the point obstacles b_ℓ of the
+    point world); ``taus`` holds τ_0..τ_L (one per barrier; τ_ℓ = 0 switches barrier ℓ off).
+
+    Only barriers with d_ℓ < τ_ℓ contribute (β' = β'' = 0 beyond).  Past a pole, i.e. where some active
+    d_ℓ is not positive beyond its rounding bound (:data:`POLE_ULPS`), χ is outside the free set and φ = +∞
+    with NaN derivatives (never a finite, negative φ that would push the entity further out)."""
     e = chi - goal
-    diff = chi - obstacles  # (L, 2)
+    r = chi - rim_center
+    diff = chi - centers  # (L, 2)
     d = np.empty(len(diff) + 1)
-    d[0] = rho0 * rho0 - chi @ chi
-    d[1:] = diff[:, 0] * diff[:, 0] + diff[:, 1] * diff[:, 1]
+    d[0] = rim_radius * rim_radius - r @ r
+    d[1:] = diff[:, 0] * diff[:, 0] + diff[:, 1] * diff[:, 1] - radii * radii
     value = k1 * float(e @ e)
     grad = 2.0 * k1 * e
     hess = np.diag([2.0 * k1, 2.0 * k1])
-    active = np.flatnonzero(d < taus)
+    active = np.flatnonzero((taus > 0.0) & (d < taus))
     if len(active) == 0:
         return value, grad, hess
-    grad_d = np.vstack([-2.0 * chi, 2.0 * diff])[active]
-    hess_d = np.where(active == 0, -2.0, 2.0)  # ∇²d_ℓ = hess_d I
+    c_act = np.vstack([np.reshape(rim_center, (1, 2)), centers])[active]
+    rho_act = np.concatenate([[rim_radius], radii])[active]
+    d_act = d[active]
+    scale = (math.sqrt(float(chi @ chi)) + np.hypot(c_act[:, 0], c_act[:, 1])) ** 2 + rho_act * rho_act
+    if np.any(d_act <= POLE_ULPS * _EPS * scale):
+        return math.inf, np.full(2, np.nan), np.full((2, 2), np.nan)
+    sign = np.where(active == 0, -1.0, 1.0)
+    grad_d = 2.0 * sign[:, None] * (chi - c_act)
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-        b, db, ddb = beta(d[active], taus[active] if np.ndim(taus) else taus)
+        b, db, ddb = beta(d_act, taus[active])
     value += k2 * float(np.sum(b - 1.0))
     grad = grad + k2 * (db @ grad_d)
-    hess = hess + k2 * (float(db @ hess_d) * np.eye(2) + (grad_d.T * ddb) @ grad_d)
+    hess = hess + k2 * (float(db @ (2.0 * sign)) * np.eye(2) + (grad_d.T * ddb) @ grad_d)
     return value, grad, hess
+
+
+def outside_free_set(phi: float) -> bool:
+    """Whether a value of φ flags a state past a barrier's pole (outside the free set)."""
+    return not math.isfinite(phi)
 
 
 @dataclass(frozen=True)
@@ -131,7 +156,9 @@ class NavigationFunction:
 
     def evaluate(self, chi) -> tuple[float, np.ndarray, np.ndarray]:
         """(φ, ∇φ, ∇²φ) at χ (shape (2,)); only barriers with d_ℓ(χ) < τ contribute (β' = β'' = 0 beyond)."""
-        return phi_terms(np.asarray(chi, dtype=float), self.goal, self.obstacles, 1.0, self.tau, self.k1, self.k2)
+        b = self.obstacles
+        return phi_terms(np.asarray(chi, dtype=float), self.goal, _ORIGIN, 1.0, b, np.zeros(len(b)),
+                         np.full(len(b) + 1, self.tau), self.k1, self.k2)
 
     def value(self, chi) -> float:
         return self.evaluate(chi)[0]
@@ -147,15 +174,15 @@ def desired_velocity(pw_map, nf: NavigationFunction, x, xdot):
     """v_d = −J_H(x)⁻¹ ∇φ(H(x)) (eq. (v_d)) and its exact time derivative along ẋ.
 
     With χ̇ = J ẋ, J̇ = Σ_i ∂J/∂x_i ẋ_i (the Hessians of H) and J v_d = −∇φ:
-    v̇_d = −J⁻¹ (∇²φ χ̇ + J̇ v_d).  Returns (v_d, v̇_d, J_H, ∇φ).
+    v̇_d = −J⁻¹ (∇²φ χ̇ + J̇ v_d).  Returns (v_d, v̇_d, J_H, ∇φ, φ); φ = +∞ (NaN v_d) past a barrier's pole.
     """
     x = np.asarray(x, dtype=float)
     xdot = np.asarray(xdot, dtype=float)
     chi, J, Hs = pw_map.evaluate(x)
-    _, g, G = nf.evaluate(chi)
+    phi, g, G = nf.evaluate(chi)
     (a, b), (c, d) = J
     J_inv = np.array([[d, -b], [-c, a]]) / (a * d - b * c)
     v_d = -(J_inv @ g)
     Jdot = Hs @ xdot  # Jdot[k, i] = Σ_j ∂²H_k/∂x_i∂x_j ẋ_j
     vdot_d = -(J_inv @ (G @ (J @ xdot) + Jdot @ v_d))
-    return v_d, vdot_d, J, g
+    return v_d, vdot_d, J, g, phi

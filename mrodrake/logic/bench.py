@@ -2,39 +2,25 @@
 
 Measures the 55 Dwyer et al. specification patterns (total NBA states, ours vs Spot's
 ``translate(f, "BA", "sbacc")``, worst ratios, translation times) and the two case-study formulas of the
-paper (states/edges; the paper reports 6/18 and 8/27).  Spot is optional; without it only our numbers
-are printed.
+paper (states/edges; the paper reports 6/18 and 8/27), both loaded by :mod:`mrodrake.logic.data`.  Spot
+is optional; without it only our numbers are printed.
 """
 
 from __future__ import annotations
 
 import sys
 import time
-from importlib import resources
 
 from mrodrake.logic import ltl
-from mrodrake.logic.buchi import NBA, translate
-from mrodrake.logic.spot_backend import spot_available
+from mrodrake.logic.data import load_case_study_formulas, load_dwyer_patterns
+from mrodrake.logic.nba import NBA
+from mrodrake.logic.spot_backend import import_spot, spot_available
+from mrodrake.logic.translate import translate
 
-__all__ = ["run_ltl_benchmark", "load_dwyer_patterns", "load_case_study_formulas", "TARGETS"]
+__all__ = ["run_ltl_benchmark", "TARGETS"]
 
 TARGETS = {"dwyer_state_ratio": 1.5, "dwyer_total_time_s": 2.0, "case_study_time_s": 0.5}
 PAPER_CASE_STUDIES = [("case I", 6, 18), ("case II", 8, 27)]
-
-
-def _read_lines(name: str) -> list[str]:
-    text = resources.files("mrodrake").joinpath("data", name).read_text(encoding="utf-8")
-    return [line.strip() for line in text.splitlines() if line.strip() and not line.lstrip().startswith("#")]
-
-
-def load_dwyer_patterns() -> list[str]:
-    """The 55 Dwyer et al. patterns (``mrodrake/data/dwyer_patterns.txt``)."""
-    return _read_lines("dwyer_patterns.txt")
-
-
-def load_case_study_formulas() -> list[str]:
-    """The formulas of case studies I and II (``mrodrake/data/case_study_formulas.txt``)."""
-    return _read_lines("case_study_formulas.txt")
 
 
 def _timed(fn, *args) -> tuple[NBA, float]:
@@ -46,9 +32,7 @@ def _timed(fn, *args) -> tuple[NBA, float]:
 def run_ltl_benchmark(stream=sys.stdout) -> dict:
     """Run the benchmark, print its table to ``stream`` and return the numbers as a dict."""
     have_spot = spot_available()
-    spot = None
-    if have_spot:
-        import spot
+    spot = import_spot() if have_spot else None
     w = stream.write
     patterns = load_dwyer_patterns()
     rows = []

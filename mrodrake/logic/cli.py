@@ -7,7 +7,7 @@ import sys
 
 from mrodrake.errors import UserError
 from mrodrake.logic import ltl
-from mrodrake.logic.buchi import translate
+from mrodrake.logic.translate import translate
 
 __all__ = ["add_subparser", "run"]
 

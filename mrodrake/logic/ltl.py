@@ -51,7 +51,7 @@ class Formula:
     ``&``/``|``); ``name`` the proposition name for ``ap`` nodes.
     """
 
-    __slots__ = ("kind", "args", "name", "_text", "_sortkey", "_size")
+    __slots__ = ("kind", "args", "name", "_text", "_sortkey", "_size", "_depth")
 
     kind: str
     args: tuple["Formula", ...]
@@ -80,6 +80,11 @@ class Formula:
         """Number of nodes of the syntax tree."""
         return self._size
 
+    @property
+    def depth(self) -> int:
+        """Height of the syntax tree (1 for a proposition or a constant)."""
+        return self._depth
+
     # Convenience operators for building formulas in Python code.
     def __and__(self, other: "Formula") -> "Formula":
         return And(self, other)
@@ -106,6 +111,7 @@ def _make(kind: str, args: tuple = (), name: str | None = None) -> Formula:
     s(f, "args", args)
     s(f, "name", name)
     s(f, "_size", 1 + sum(a._size for a in args))
+    s(f, "_depth", 1 + max((a._depth for a in args), default=0))
     text = _render(kind, args, name)
     s(f, "_text", text)
     # Operand order of & and |: constants, then literals by proposition name, then the rest by text.
@@ -428,35 +434,27 @@ def _tokenize(text: str, source: str) -> list[tuple[str, object, int]]:
     return toks
 
 
+#: Deepest syntax tree the parser accepts.  Parsing itself is iterative (no limit on parentheses, which add
+#: no depth), but NNF, simplification and the translation recurse once per level of the tree.
+MAX_DEPTH = 200
+
+# Binary operators: (precedence, right-associative); unary operators bind tighter than all of them.
+_BINARY = {IMPLIES: (1, True), EQUIV: (1, True), OR: (2, False), XOR: (3, False), AND: (4, False),
+           UNTIL: (5, True), RELEASE: (5, True), WEAK_UNTIL: (5, True), STRONG_RELEASE: (5, True)}
+_PREFIX = (NOT, NEXT, EVENTUALLY, ALWAYS)
+
+
 class _Parser:
+    """Operator-precedence parser with explicit stacks (no recursion, whatever the nesting)."""
+
     def __init__(self, text: str, source: str, resolve: Callable[[str, int], Formula | None]):
         self.text = text
         self.source = source
         self.toks = _tokenize(text, source)
-        self.pos = 0
         self.resolve = resolve
 
     def error(self, tok, what: str) -> UserError:
         return _syntax_error(self.source, self.text, tok[2], what)
-
-    def peek(self):
-        return self.toks[self.pos]
-
-    def take(self):
-        t = self.toks[self.pos]
-        self.pos += 1
-        return t
-
-    def parse(self) -> Formula:
-        if self.peek()[0] == "eof":
-            raise self.error(self.peek(), "empty formula")
-        f = self.implies()
-        t = self.peek()
-        if t[0] != "eof":
-            if t[1] == ")":
-                raise self.error(t, "unmatched ')'")
-            raise self.error(t, f"unexpected {self.describe(t)}, expected an operator or the end")
-        return f
 
     @staticmethod
     def describe(t) -> str:
@@ -468,69 +466,79 @@ class _Parser:
             return "constant"
         return f"'{t[1]}'"
 
-    def implies(self) -> Formula:
-        lhs = self.or_()
-        t = self.peek()
-        if t[0] == "op" and t[1] in (IMPLIES, EQUIV):
-            self.take()
-            rhs = self.implies()
-            return Implies(lhs, rhs) if t[1] == IMPLIES else Equiv(lhs, rhs)
-        return lhs
-
-    def or_(self) -> Formula:
-        parts = [self.xor()]
-        while self.peek()[0] == "op" and self.peek()[1] == OR:
-            self.take()
-            parts.append(self.xor())
-        return parts[0] if len(parts) == 1 else Or(*parts)
-
-    def xor(self) -> Formula:
-        f = self.and_()
-        while self.peek()[0] == "op" and self.peek()[1] == XOR:
-            self.take()
-            f = Xor(f, self.and_())
+    def build(self, tok, f: Formula) -> Formula:
+        if f.depth > MAX_DEPTH:
+            raise self.error(tok, f"formula nested deeper than {MAX_DEPTH} operators (the limit of the LTL "
+                                  "translation)")
         return f
 
-    def and_(self) -> Formula:
-        parts = [self.until()]
-        while self.peek()[0] == "op" and self.peek()[1] == AND:
-            self.take()
-            parts.append(self.until())
-        return parts[0] if len(parts) == 1 else And(*parts)
+    def parse(self) -> Formula:
+        toks = self.toks
+        if toks[0][0] == "eof":
+            raise self.error(toks[0], "empty formula")
+        out: list[Formula] = []
+        ops: list[tuple] = []  # operator and '(' tokens
 
-    def until(self) -> Formula:
-        lhs = self.unary()
-        t = self.peek()
-        if t[0] == "op" and t[1] in BINARY_TEMPORAL:
-            self.take()
-            rhs = self.until()
-            return _BUILD[t[1]](lhs, rhs)
-        return lhs
+        def reduce_top() -> None:
+            tok = ops.pop()
+            if tok[1] in _PREFIX:
+                out.append(self.build(tok, _BUILD[tok[1]](out.pop())))
+            else:
+                rhs = out.pop()
+                out.append(self.build(tok, _BUILD[tok[1]](out.pop(), rhs)))
 
-    def unary(self) -> Formula:
-        t = self.take()
-        typ, val, col = t
-        if typ == "op":
-            if val in (NOT, NEXT, EVENTUALLY, ALWAYS):
-                return _BUILD[val](self.unary())
-            if val == "(":
-                if self.peek()[0] == "op" and self.peek()[1] == ")":
-                    raise self.error(self.peek(), "empty parentheses")
-                f = self.implies()
-                close = self.peek()
-                if not (close[0] == "op" and close[1] == ")"):
-                    if close[0] == "eof":
-                        raise self.error(t, "unclosed '('")
-                    raise self.error(close, f"unexpected {self.describe(close)}, expected ')'")
-                self.take()
-                return f
-            raise self.error(t, f"unexpected {self.describe(t)}, expected a formula")
-        if typ == "const":
-            return TRUE if val else FALSE
-        if typ == "ap":
-            g = self.resolve(val, col)
-            return g if g is not None else Ap(val)
-        raise self.error(t, "unexpected end of formula, expected a formula")
+        def open_paren() -> tuple | None:
+            return next((t for t in reversed(ops) if t[1] == "("), None)
+
+        operand = True  # expecting an operand
+        prev = None
+        for t in toks:
+            typ, val, _ = t
+            if operand:
+                if typ == "op" and val in _PREFIX:
+                    ops.append(t)
+                elif typ == "op" and val == "(":
+                    ops.append(t)
+                elif typ == "op" and val == ")" and prev is not None and prev[1] == "(":
+                    raise self.error(t, "empty parentheses")
+                elif typ == "const":
+                    out.append(TRUE if val else FALSE)
+                    operand = False
+                elif typ == "ap":
+                    g = self.resolve(val, t[2])
+                    out.append(g if g is not None else Ap(val))
+                    operand = False
+                elif typ == "eof":
+                    raise self.error(t, "unexpected end of formula, expected a formula")
+                else:
+                    raise self.error(t, f"unexpected {self.describe(t)}, expected a formula")
+            elif typ == "op" and val in _BINARY:
+                prec, right = _BINARY[val]
+                while ops and ops[-1][1] != "(":
+                    top = ops[-1][1]
+                    top_prec = 6 if top in _PREFIX else _BINARY[top][0]
+                    if top_prec > prec or (top_prec == prec and not right):
+                        reduce_top()
+                    else:
+                        break
+                ops.append(t)
+                operand = True
+            elif typ == "op" and val == ")":
+                while ops and ops[-1][1] != "(":
+                    reduce_top()
+                if not ops:
+                    raise self.error(t, "unmatched ')'")
+                ops.pop()
+            elif typ == "eof":
+                while ops and ops[-1][1] != "(":
+                    reduce_top()
+                if ops:
+                    raise self.error(open_paren(), "unclosed '('")
+            else:
+                expected = "')'" if open_paren() is not None else "an operator or the end"
+                raise self.error(t, f"unexpected {self.describe(t)}, expected {expected}")
+            prev = t
+        return out[0]
 
 
 def parse(text: str, macros: dict[str, str] | None = None, source: str = "formula", *,
@@ -556,6 +564,8 @@ def parse(text: str, macros: dict[str, str] | None = None, source: str = "formul
         body = macros[name]
         if not isinstance(body, str):
             raise UserError(f"{macro_prefix}{name}: macro body must be a string, got {type(body).__name__}")
+        if len(stack) >= MAX_DEPTH:
+            raise UserError(f"{macro_prefix}{name}: macros nested deeper than {MAX_DEPTH} levels")
         stack.append(name)
         f = _Parser(body, f"{macro_prefix}{name}", resolve).parse()
         stack.pop()

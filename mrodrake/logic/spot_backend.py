@@ -8,8 +8,9 @@ from __future__ import annotations
 
 from mrodrake.errors import UserError
 from mrodrake.logic import ltl
-from mrodrake.logic.buchi import NBA
+from mrodrake.logic.hoa import read_hoa
 from mrodrake.logic.ltl import Formula
+from mrodrake.logic.nba import NBA
 
 __all__ = ["spot_available", "import_spot", "translate_spot"]
 
@@ -40,5 +41,5 @@ def translate_spot(f: Formula | str) -> NBA:
     if isinstance(f, str):
         f = ltl.parse(f)
     aut = spot.translate(spot.formula(ltl.to_str(f)), "BA", "sbacc")
-    nba = NBA.from_hoa(aut.to_str("hoa"), source="spot")
+    nba = read_hoa(aut.to_str("hoa"), source="spot")
     return nba.with_ap(tuple(sorted(ltl.atoms(f))))

@@ -29,7 +29,7 @@ import numpy as np
 from scipy.sparse.csgraph import connected_components, dijkstra
 
 from mrodrake.errors import UserError
-from mrodrake.logic.buchi import NBA
+from mrodrake.logic.nba import NBA
 from mrodrake.planning.product import Product, prune_nba, useful_states
 from mrodrake.ts import TransitionSystem
 

@@ -37,7 +37,7 @@ JSON schema (``Plan.to_json``), version 1::
              each ACTION also has "text" (e.g. "transport o1 by r1+r3 p1->p4") and "paper"
              (Table I notation, e.g. "π1 →T_{1,3},1 π4").
 
-NBA state ids refer to ``mrodrake.logic.buchi.translate(formula)`` re-indexed onto the TS propositions.
+NBA state ids refer to ``mrodrake.logic.translate.translate(formula)`` re-indexed onto the TS propositions.
 """
 
 from __future__ import annotations
@@ -49,7 +49,7 @@ from pathlib import Path
 from typing import Callable, Sequence
 
 from mrodrake.errors import UserError
-from mrodrake.logic.buchi import NBA
+from mrodrake.logic.nba import NBA
 from mrodrake.ts import Action, Grasp, Navigate, Release, State, TransitionSystem, Transport
 
 FORMAT = "mrodrake.plan"
@@ -311,7 +311,7 @@ def _jsonable(x):
 # ---------------------------------------------------------------------------------------- high level
 def task_nba(scenario, ts: TransitionSystem):
     """(formula, NBA over ts.propositions) of the scenario's task."""
-    from mrodrake.logic.buchi import translate
+    from mrodrake.logic.translate import translate
     from mrodrake.logic.ltl import parse
 
     f = parse(scenario.task.formula, macros=dict(scenario.task.propositions), source="task.formula",

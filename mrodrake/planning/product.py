@@ -25,7 +25,7 @@ from typing import Iterator, Mapping, Sequence
 import numpy as np
 import scipy.sparse as sp
 
-from mrodrake.logic.buchi import NBA
+from mrodrake.logic.nba import NBA
 from mrodrake.ts import ExplicitTS, State, TransitionSystem
 
 Node = tuple  # (TS state, NBA state)

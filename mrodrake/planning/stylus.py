@@ -48,7 +48,7 @@ from typing import Callable
 import numpy as np
 
 from mrodrake.errors import UserError
-from mrodrake.logic.buchi import NBA
+from mrodrake.logic.nba import NBA
 from mrodrake.planning.product import (CubeGoal, accepting_on_cycle, cube_goal, cube_infeasibility,
                                        cycle_distances, hop_distances, hop_distances_from, prune_nba,
                                        useful_states)

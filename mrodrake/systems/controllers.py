@@ -8,11 +8,11 @@ Reuse in a full mission diagram (design choice).  Everything that depends on one
 point-world map of the entity's free space, φ with its b_ℓ, r̄ and τ, the goal and the load sharing — is
 bundled in a precomputed :class:`~mrodrake.control.adaptive.NavigationTask`.  A controller takes the task
 either at construction (single-transition use: the ``task`` port stays unconnected) or per context from its
-abstract ``task`` input, which a supervisor drives: ``None`` disables the controller (zero inputs, frozen
-estimates, so idle controllers do not drift), and a new task object resets the estimates to the task's
-m̂(0), α̂(0) at the start of the next step (a per-step unrestricted update on the controller's own state).
-So one controller per robot (and per team used by a plan) can stay wired for a whole mission while the
-supervisor only swaps tasks.
+abstract ``task`` input (a :class:`TaskCommand`), which a supervisor drives: ``None`` disables the
+controller (zero inputs, frozen estimates, so idle controllers do not drift), and a new *episode* resets the
+estimates to the task's m̂(0), α̂(0) at the start of the next step (a per-step unrestricted update on the
+controller's own state), while a new task within the same episode keeps them.  So one controller per robot
+(and per team used by a plan) can stay wired for a whole mission while the supervisor only swaps tasks.
 
 One cache entry evaluates the law (map, φ, v_d, v̇_d) once per context change; the outputs and the
 estimate derivatives all read it (one map evaluation per derivative evaluation of the closed loop).
@@ -20,6 +20,7 @@ estimate derivatives all read it (one map evaluation per derivative evaluation o
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import Sequence
 
 import numpy as np
@@ -31,16 +32,30 @@ from mrodrake.control.adaptive import AdaptiveGains, ControlEval, NavigationTask
 _ZERO = ControlEval(np.zeros(2), 0.0, 0.0, np.zeros(2), np.zeros(2), np.zeros(2))
 
 
-class _TaskBox:
-    """Holder for the task the current estimates belong to (abstract state)."""
+@dataclass(frozen=True)
+class TaskCommand:
+    """What a supervisor sends a controller: the task in force and the episode it belongs to.  The
+    estimates restart from the task's m̂(0), α̂(0) when the episode changes and carry over when only the task
+    changes within an episode (a primitive switching from the point-world law to the local law near its goal,
+    or to its next leg): the paper adapts through the whole transition."""
 
-    __slots__ = ("task",)
+    task: NavigationTask
+    episode: int
 
-    def __init__(self, task):
-        self.task = task
+    def __deepcopy__(self, memo):
+        return self
 
-    def __deepcopy__(self, memo):  # Drake clones abstract values by deepcopy: share the (immutable) task
-        return _TaskBox(self.task)
+
+class _EpisodeBox:
+    """Holder for the episode the current estimates belong to (abstract state; None: idle)."""
+
+    __slots__ = ("episode",)
+
+    def __init__(self, episode):
+        self.episode = episode
+
+    def __deepcopy__(self, memo):
+        return _EpisodeBox(self.episode)
 
 
 class _AdaptiveController(LeafSystem):
@@ -53,8 +68,9 @@ class _AdaptiveController(LeafSystem):
         g = gains if gains is not None else (task.gains if task is not None else AdaptiveGains())
         self.DeclareContinuousState(BasicVector([g.m_hat0, g.alpha_hat0]))
         self.state_port = self.DeclareVectorInputPort("state", 4)
-        self.task_port = self.DeclareAbstractInputPort("task", AbstractValue.Make(task))
-        self._box_index = self.DeclareAbstractState(AbstractValue.Make(_TaskBox(task)))
+        self._command = None if task is None else TaskCommand(task, 0)
+        self.task_port = self.DeclareAbstractInputPort("task", AbstractValue.Make(self._command))
+        self._box_index = self.DeclareAbstractState(AbstractValue.Make(_EpisodeBox(None if task is None else 0)))
         self._law = self.DeclareCacheEntry(
             "adaptive law",
             ValueProducer(allocate=lambda: AbstractValue.Make(_ZERO), calc=self._CalcLaw),
@@ -65,20 +81,26 @@ class _AdaptiveController(LeafSystem):
         self._u_prereqs = {self._law.ticket(), self.task_port.ticket()}
 
     # ------------------------------------------------------------------ task handling
-    def active_task(self, context) -> NavigationTask | None:
-        """The task in force: the ``task`` input if connected, else the construction-time task."""
+    def command(self, context) -> TaskCommand | None:
+        """The command in force: the ``task`` input if connected, else the construction-time task."""
         if self.task_port.HasValue(context):
             return self.task_port.Eval(context)
-        return self._task
+        return self._command
+
+    def active_task(self, context) -> NavigationTask | None:
+        """The task in force (None: the controller is idle)."""
+        cmd = self.command(context)
+        return None if cmd is None else cmd.task
 
     def _ResetOnNewTask(self, context, state):
-        task = self.active_task(context)
+        cmd = self.command(context)
+        episode = None if cmd is None else cmd.episode
         box = context.get_abstract_state(int(self._box_index)).get_value()
-        if task is box.task:
+        if episode == box.episode:
             return EventStatus.DidNothing()  # leaves the context (and its caches) untouched
-        state.get_mutable_abstract_state(int(self._box_index)).set_value(_TaskBox(task))
-        if task is not None:
-            state.get_mutable_continuous_state().SetFromVector([task.gains.m_hat0, task.gains.alpha_hat0])
+        state.get_mutable_abstract_state(int(self._box_index)).set_value(_EpisodeBox(episode))
+        if cmd is not None:
+            state.get_mutable_continuous_state().SetFromVector([cmd.task.gains.m_hat0, cmd.task.gains.alpha_hat0])
         return EventStatus.Succeeded()
 
     def set_estimates(self, context, m_hat: float, alpha_hat: float) -> None:
@@ -98,6 +120,10 @@ class _AdaptiveController(LeafSystem):
     def law(self, context) -> ControlEval:
         """The cached evaluation of the law in ``context``."""
         return self._law.Eval(context)
+
+    def fault(self, context) -> str:
+        """Why the law is undefined at the current state (empty while it is defined or the controller idles)."""
+        return self._law.Eval(context).fault if self.active_task(context) is not None else ""
 
     def DoCalcTimeDerivatives(self, context, derivatives):
         ev = self._law.Eval(context)

@@ -146,7 +146,7 @@ class MissionLogger(LeafSystem):
             self.u_ports[c] = self.DeclareVectorInputPort(f"u_{c}", 2)
             self.est_ports[c] = self.DeclareVectorInputPort(f"est_{c}", 2)
             self.task_ports[c] = self.DeclareAbstractInputPort(f"task_{c}", AbstractValue.Make(None))
-        self.DeclarePeriodicPublishEvent(float(period), 0.0, self._Sample)
+        self.DeclarePeriodicPublishEvent(float(period), 0.0, self.Sample)
         self.clear()
 
     def clear(self) -> None:
@@ -154,21 +154,22 @@ class MissionLogger(LeafSystem):
         self.states: list[np.ndarray] = []
         self.signals: list[tuple] = []
 
-    def _Sample(self, context):
+    def Sample(self, context):
+        """Record one sample at the context's time (the periodic publish; also called once at an abort)."""
         t = float(context.get_time())
         if self.times and t <= self.times[-1]:
             return EventStatus.DidNothing()
         self.times.append(t)
         self.states.append(np.concatenate([p.Eval(context) for p in self.state_ports]))
         for c, (entity, members) in self.controllers.items():
-            task = self.task_ports[c].Eval(context)
-            if task is None:
+            cmd = self.task_ports[c].Eval(context)
+            if cmd is None:
                 continue
             u = self.u_ports[c].Eval(context)
             m, a = self.est_ports[c].Eval(context)
             self.signals.append((t, c, entity, float(u[0]), float(u[1]), float(m), float(a)))
             for k, r in enumerate(members):
-                self.signals.append((t, c, r, float(task.cf[k] * u[0]), float(task.cf[k] * u[1]), float(m),
+                self.signals.append((t, c, r, float(cmd.task.cf[k] * u[0]), float(cmd.task.cf[k] * u[1]), float(m),
                                      float(a)))
         return EventStatus.Succeeded()
 
@@ -263,42 +264,69 @@ class MissionLog:
         return fig
 
     def write(self, out_dir) -> list[Path]:
-        """Write plan.json, plan.csv, trajectory.csv, signals.csv, events.csv, replay.html and figures/."""
+        """Write plan.json, plan.csv, trajectory.csv, signals.csv, events.csv, replay.html and figures/.
+
+        Every file is attempted even if an earlier one fails; then an :class:`OutputError` names what could
+        not be written and where the rest went."""
         from mrodrake.viz.figures import figure_signals, figure_trajectory
         from mrodrake.viz.replay import write_replay
 
         out = Path(out_dir)
-        (out / "figures").mkdir(parents=True, exist_ok=True)
-        written = []
+        written: list[Path] = []
+        failed: list[str] = []
 
-        def add(p):
-            written.append(Path(p))
+        def attempt(path: Path, write) -> None:
+            try:
+                path.parent.mkdir(parents=True, exist_ok=True)
+                result = write(path)
+                written.append(Path(result) if isinstance(result, (str, Path)) else path)
+            except (OSError, ValueError) as exc:
+                failed.append(f"{path.name}: {exc}")
 
-        self.plan.write(out / "plan.json")
-        add(out / "plan.json")
-        self.plan.table().to_csv(out / "plan.csv", index=False)
-        add(out / "plan.csv")
+        attempt(out / "plan.json", self.plan.write)
+        attempt(out / "plan.csv", lambda p: self.plan.table().to_csv(p, index=False))
         for name, df in (("trajectory", self.trajectory), ("signals", self.signals), ("events", self.events)):
-            df.to_csv(out / f"{name}.csv", index=False, float_format="%.10g")
-            add(out / f"{name}.csv")
+            attempt(out / f"{name}.csv", lambda p, df=df: df.to_csv(p, index=False, float_format="%.10g"))
         if len(self.trajectory):
-            add(write_replay(self.scenario, self.trajectory, out / "replay.html", grasps=self.grasps))
-            self.figure_initial(out / "figures" / "fig1_initial.png")
-            add(out / "figures" / "fig1_initial.png")
+            attempt(out / "replay.html",
+                    lambda p: write_replay(self.scenario, self.trajectory, p, grasps=self.grasps))
+            attempt(out / "figures" / "fig1_initial.png", self.figure_initial)
         navs = [r for r in self.primitives if r.kind == "navigate"]
         trans = [r for r in self.primitives if r.kind == "transport"]
-        for tag, recs, f_traj, f_sig in (("navigation", navs, "fig2_navigation", "fig3_navigation_signals"),
-                                         ("transport", trans, "fig4_transport", "fig5_transport_signals")):
+        for recs, f_traj, f_sig in ((navs, "fig2_navigation", "fig3_navigation_signals"),
+                                    (trans, "fig4_transport", "fig5_transport_signals")):
             if not recs:
                 continue
             res = self.transition_result(max(recs, key=lambda r: r.t_end - r.t_start))
             if len(res.log) < 2:
                 continue
-            figure_trajectory(res, out / "figures" / f"{f_traj}_{res.entity}.png")
-            figure_signals(res, out / "figures" / f"{f_sig}_{res.entity}.png")
-            add(out / "figures" / f"{f_traj}_{res.entity}.png")
-            add(out / "figures" / f"{f_sig}_{res.entity}.png")
+            attempt(out / "figures" / f"{f_traj}_{res.entity}.png", lambda p: figure_trajectory(res, p))
+            attempt(out / "figures" / f"{f_sig}_{res.entity}.png", lambda p: figure_signals(res, p))
+        if failed:
+            raise OutputError(f"could not write {len(failed)} output file(s) to {out}/ ({'; '.join(failed)}); "
+                              f"{len(written)} written", written)
         return written
+
+
+class OutputError(UserError):
+    """Some output files could not be written; ``written`` lists those that were."""
+
+    def __init__(self, message: str, written: list[Path]):
+        super().__init__(message)
+        self.written = written
+
+
+def ensure_output_dir(path, option: str = "--out") -> Path:
+    """Create ``path`` (with parents) and check that files can be written there, before any simulation."""
+    out = Path(path)
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+        probe = out / ".mrodrake-write-test"
+        probe.write_text("", encoding="utf-8")
+        probe.unlink()
+    except OSError as exc:
+        raise UserError(f"{option}: cannot write to '{out}': {exc.strerror or exc}") from None
+    return out
 
 
 # ------------------------------------------------------------------------------------------ mission
@@ -444,15 +472,31 @@ class Mission:
 
     def run(self, progress: Callable[[int, int], None] | None = None, t_max: float = 1e7) -> "MissionLog":
         """Simulate until the supervisor ends the mission (one ``AdvanceTo``); ``progress(done, total)`` is
-        called whenever a plan step completes.  Returns :meth:`log`."""
+        called whenever a plan step completes.  Returns :meth:`log`.
+
+        After every integration step the active controllers are checked for a fault (the state left the free
+        set or the map's domain, :class:`~mrodrake.control.adaptive.ControlEval`); a fault, an integrator
+        failure or any other exception inside the simulation ends the mission as a failed primitive with a
+        one-line reason (:meth:`~mrodrake.systems.supervisor.Supervisor.abort`), and the log keeps everything
+        recorded so far."""
         sim = self.simulator
         last = [-1]
+        controllers = {f"nav_{r}": c for r, c in self.nav_ctrls.items()}
+        controllers.update({f"{name}_ctrl": c for name, c in self.team_ctrls.items()})
+        fault = [""]
 
         def monitor(root_context):
             if self._stop:
                 return EventStatus.ReachedTermination(self.diagram, "stopped by the user")
+            st = self.supervisor.sup_state(self.supervisor.GetMyContextFromRoot(root_context))
+            for name, cmd in st.tasks.items():
+                if cmd is not None:
+                    why = controllers[name].fault(controllers[name].GetMyContextFromRoot(root_context))
+                    if why:
+                        fault[0] = f"controller fault of {name}: {why}"
+                        return EventStatus.ReachedTermination(self.diagram, fault[0])
             if progress is not None:
-                done = self.steps_done()
+                done = self.steps_done() if st.status != "done" else self.total_steps
                 if done != last[0]:
                     last[0] = done
                     progress(done, self.total_steps)
@@ -462,12 +506,22 @@ class Mission:
         t0 = time.perf_counter()
         try:
             sim.AdvanceTo(float(t_max))
+        except Exception as exc:  # noqa: BLE001 - any failure inside the simulation ends the mission cleanly
+            self._abort(_simulation_failure(exc))
         finally:
             self.wall_seconds += time.perf_counter() - t0
             sim.clear_monitor()
+        if fault[0]:
+            self._abort(fault[0])
         if progress is not None:
             progress(self.steps_done(), self.total_steps)
         return self.log()
+
+    def _abort(self, reason: str) -> None:
+        """Record ``reason`` as the failure of the primitive in execution and sample the final state."""
+        ctx = self.simulator.get_mutable_context()
+        self.supervisor.abort(self.supervisor.GetMyMutableContextFromRoot(ctx), reason)
+        self.logger.Sample(self.logger.GetMyContextFromRoot(ctx))
 
     # ------------------------------------------------------------------ log
     def log(self) -> MissionLog:
@@ -503,6 +557,15 @@ class Mission:
         return MissionLog(self.scenario, self.plan, traj, sig, events, grasps, ok, message, final, expected,
                           self.steps_done(), self.total_steps, t_now, self.wall_seconds, list(st.primitives),
                           sorted(st.run))
+
+
+def _simulation_failure(exc: BaseException) -> str:
+    """One line for an exception raised inside the simulation (Drake's integrator failures included)."""
+    text = str(exc).strip().splitlines()
+    first = text[0] if text else type(exc).__name__
+    if "step smaller than minimum" in first or "Integrator" in first or "integrator" in first:
+        return f"integrator failure ({first})"
+    return f"{type(exc).__name__} inside the simulation: {first}"
 
 
 def cp_object(name: str, objects) -> str:
@@ -542,6 +605,8 @@ def run_mission(scenario, plan=None, planner: str = "stylus", suffix_cycles: int
         plan = plan_scenario(scenario, planner, seed=None if planner == "exact" else seed)
     elif not hasattr(plan, "steps"):
         plan = load_plan(scenario, plan)
+    if out_dir is not None:
+        ensure_output_dir(out_dir, "out_dir")
     mission = Mission(scenario, plan, suffix_cycles=suffix_cycles, seed=seed, **mission_options)
     log = mission.run(progress)
     if out_dir is not None:

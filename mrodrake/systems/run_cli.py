@@ -35,16 +35,15 @@ def run(args: argparse.Namespace) -> int:
     from mrodrake.errors import UserError
     from mrodrake.planning.plan import plan_scenario
     from mrodrake.scenario import load_scenario
-    from mrodrake.systems.mission import Mission, load_plan
+    from mrodrake.systems.mission import Mission, OutputError, ensure_output_dir, load_plan
 
     if args.suffix_cycles < 0:
         raise UserError(f"--suffix-cycles: must be >= 0, got {args.suffix_cycles}")
     scenario = load_scenario(args.scenario)
-    out = Path(args.out) if args.out else Path("out") / scenario.name
+    plan = load_plan(scenario, args.plan) if args.plan else None
+    out = ensure_output_dir(Path(args.out) if args.out else Path("out") / scenario.name)
     t0 = time.perf_counter()
-    if args.plan:
-        plan = load_plan(scenario, args.plan)
-    else:
+    if plan is None:
         print(f"planning {scenario.name} with {args.planner} ...", file=sys.stderr)
         plan = plan_scenario(scenario, args.planner, seed=None if args.planner == "exact" else args.seed)
     print(plan.summary(), file=sys.stderr)
@@ -66,11 +65,17 @@ def run(args: argparse.Namespace) -> int:
     finally:
         signal.signal(signal.SIGINT, previous)
         bar.close()
-    files = log.write(out)
+    try:
+        files, write_error = log.write(out), None
+    except OutputError as exc:
+        files, write_error = exc.written, str(exc)
     prim = log.primitive_events
     print(f"{scenario.name}: {'ok' if log.ok else 'FAILED: ' + log.message}")
     print(f"  primitives ok: {int(prim['ok'].sum())}/{len(prim)}   plan steps: {log.steps_done}/{log.steps_total}")
     print(f"  simulated time: {log.sim_seconds:.1f} s   wall: {log.wall_seconds:.1f} s (simulation), "
           f"{time.perf_counter() - t0:.1f} s total")
     print(f"  output: {out}/ ({', '.join(str(f.relative_to(out)) for f in files)})")
+    if write_error:
+        print(f"error: {write_error}", file=sys.stderr)
+        return 1
     return 0 if log.ok else 1

@@ -48,6 +48,7 @@ from mrodrake.control.local import PATH_CLEARANCE, disk_obstacles, local_path, l
 from mrodrake.errors import UserError
 from mrodrake.geometry import grasp_layout, polygon, workspace_free_space
 from mrodrake.packing import place
+from mrodrake.systems.controllers import TaskCommand
 from mrodrake.ts import Grasp, Navigate, Release, Transport
 
 #: Speed (m/s) under which an arrived entity counts as at rest (then parked).
@@ -243,6 +244,7 @@ class SupState:
     status: str = "running"
     message: str = ""
     version: int = 0
+    episode: int = 0
 
     def copy(self) -> "SupState":
         return replace(self, op_info=dict(self.op_info), sync=dict(self.sync), tasks=dict(self.tasks),
@@ -700,6 +702,27 @@ class Supervisor(LeafSystem):
     def _event(self, st: SupState, **row) -> None:
         st.events = st.events + (row,)
 
+    def abort(self, context, reason: str) -> str:
+        """End the mission in ``context`` (this system's own context, mutable) as a failure of the primitive in
+        execution, from outside the periodic update (a controller fault, an integrator failure, any exception
+        inside the simulation); returns the one-line message, which names the primitive, its step and the
+        simulated time."""
+        st = self.sup_state(context).copy()
+        if st.status != "running":
+            return st.message
+        t = float(context.get_time())
+        if st.op is not None:
+            where = (f"{self.ts.format_action(st.op.action, 'names')} (step {st.op.step.index}, plan step "
+                     f"{st.op.step.plan_step})")
+        elif 0 <= st.step_idx < len(self.steps):
+            where = f"step {self.steps[st.step_idx].index}"
+        else:
+            where = "the mission"
+        msg = f"{where} failed at t = {t:.2f} s: {reason}"
+        self._fail(st, t, msg)
+        context.get_mutable_abstract_state(int(self._state_index)).set_value(st)
+        return msg
+
     def _fail(self, st: SupState, t: float, msg: str) -> None:
         if st.op is not None:
             self._primitive_event(st, t, ok=False, detail=msg)
@@ -808,7 +831,8 @@ class Supervisor(LeafSystem):
             task = self._task(free, max(1, len(team)), f"{self.entities[entity]} {kind}")
         except (UserError, ValueError) as exc:
             raise _Failure(f"{kind} of {self.entities[entity]}: {str(exc).splitlines()[0]}") from None
-        st.tasks[controller] = task
+        st.episode += 1
+        st.tasks[controller] = TaskCommand(task, st.episode)
         self._unfreeze(st, plant)
         st.op_info.update(goal=goal, radius=radius, dst=dst, plant=plant, controller=controller, start=start,
                           free=free, task=task, others=tuple(others), src=src, entity=entity, team=team,
@@ -846,7 +870,8 @@ class Supervisor(LeafSystem):
                                                                        axis=1)))))
         task = self._local_leg_task(st, X)
         st.op_info["task"] = task
-        st.tasks[f"nav_{name}"] = task
+        st.episode += 1
+        st.tasks[f"nav_{name}"] = TaskCommand(task, st.episode)
         self._unfreeze(st, name)
         st.phase = "moving"
 
@@ -872,7 +897,7 @@ class Supervisor(LeafSystem):
             info["no_settle"] = True
             return
         info.update(legs=legs, leg=0)
-        st.tasks[info["controller"]] = self._local_leg_task(st, X)
+        self._swap_task(st, info["controller"], self._local_leg_task(st, X))
 
     def _next_leg(self, st: SupState, X: np.ndarray) -> None:
         """Start the next leg of a local motion once the entity is within LEG_TOL of the current waypoint."""
@@ -885,7 +910,12 @@ class Supervisor(LeafSystem):
             task = self._local_leg_task(st, X)
             if info["kind"] in ("dock", "backoff", "room"):
                 info["task"] = task
-            st.tasks[info["controller"]] = task
+            self._swap_task(st, info["controller"], task)
+
+    @staticmethod
+    def _swap_task(st: SupState, controller: str, task) -> None:
+        """Give ``controller`` a new task within its episode (the estimates carry over)."""
+        st.tasks[controller] = TaskCommand(task, st.tasks[controller].episode)
 
     def _arrived(self, st: SupState, X: np.ndarray) -> bool:
         """Completion of the current motion: at rest (speed ≤ rest_speed) and, for a docking or a back-off, on

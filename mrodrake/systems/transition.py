@@ -146,7 +146,7 @@ class RunStatus:
 def advance_with_stiffness_switch(sim: Simulator, t_final: float, *, accuracy: float = 1e-4, max_step: float = 2.0,
                                   explicit: str = "runge_kutta3", implicit: str = "implicit_euler",
                                   window: int = 100, min_step: float = 1e-3, implicit_span: float = 2.0,
-                                  implicit_accuracy: float = 1e-3) -> RunStatus:
+                                  implicit_accuracy: float = 1e-3, fault=None) -> RunStatus:
     """Advance ``sim`` to ``t_final`` with an explicit error-controlled integrator, switching to an implicit
     one for ``implicit_span`` simulated seconds whenever the last ``window`` steps averaged less than
     ``min_step`` (stiffness).
@@ -155,13 +155,18 @@ def advance_with_stiffness_switch(sim: Simulator, t_final: float, *, accuracy: f
     barrier's edge sees a stiff, smooth vector field (∇²φ ~ k2/τ); explicit RK3 then needs ~1e-4 s steps
     (thousands per simulated second) while implicit Euler takes ~0.1 s steps.  Elsewhere RK3 is several
     times cheaper per simulated second.  Ends early (``reached``) when a termination event fires; a
-    failure event or integrator error gives ``reached=False`` with its message.
+    failure event, a controller fault (``fault(context)`` non-empty after a step) or an integrator error gives
+    ``reached=False`` with its message.
     """
     times: deque[float] = deque(maxlen=window + 1)
-    mode = {"stiff": False}
+    mode = {"stiff": False, "fault": ""}
     diagram = sim.get_system()
 
     def watch(context):
+        why = fault(context) if fault is not None else ""
+        if why:
+            mode["fault"] = why
+            return EventStatus.ReachedTermination(diagram, why)
         if mode["stiff"]:
             return EventStatus.DidNothing()
         times.append(context.get_time())
@@ -188,6 +193,8 @@ def advance_with_stiffness_switch(sim: Simulator, t_final: float, *, accuracy: f
             if mode["stiff"]:
                 status = sim.AdvanceTo(min(t_final, t0 + implicit_span))
                 implicit_time += context.get_time() - t0
+                if mode["fault"]:
+                    return RunStatus(False, f"controller fault: {mode['fault']}", implicit_time, switches)
                 if status.reason() == status.ReturnReason.kReachedTerminationCondition:
                     return RunStatus(True, status.message(), implicit_time, switches)
                 if context.get_time() >= t_final:
@@ -197,6 +204,8 @@ def advance_with_stiffness_switch(sim: Simulator, t_final: float, *, accuracy: f
                 use(explicit, accuracy)
                 continue
             status = sim.AdvanceTo(t_final)
+            if mode["fault"]:
+                return RunStatus(False, f"controller fault: {mode['fault']}", implicit_time, switches)
             if status.reason() != status.ReturnReason.kReachedTerminationCondition:
                 return RunStatus(False, "t_max reached", implicit_time, switches)
             if not mode["stiff"]:
@@ -407,7 +416,8 @@ def simulate_transition(
 
     t1 = time.perf_counter()
     run = advance_with_stiffness_switch(sim, float(t_max), accuracy=accuracy, max_step=max_step,
-                                        explicit=integrator)
+                                        explicit=integrator,
+                                        fault=lambda c: ctrl.fault(ctrl.GetMyContextFromRoot(c)))
     sim_seconds = time.perf_counter() - t1
     data = logger.FindLog(ctx)
     t = data.sample_times()

@@ -23,6 +23,7 @@ from mrodrake.control.adaptive import (
     saturate_velocity,
     transport_inputs,
 )
+from mrodrake.control.local import DiskWorldNavigationFunction, local_task
 from mrodrake.control.navfunc import NavigationFunction
 from mrodrake.control.pointworld import PointWorldMap
 from mrodrake.systems.plants import friction
@@ -170,6 +171,46 @@ def test_circle_barrier_blows_up_at_rho0():
     assert np.all(np.diff(vals) > 0.0) and vals[-1] > 1e9
     with np.errstate(divide="ignore", invalid="ignore"):
         assert nf.evaluate(rho0 * u)[0] == math.inf  # the pole: d_0 = 0
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.floats(0.0, 2.0 * math.pi), st.integers(-8, 8), st.floats(0.5, 0.999))
+def test_phi_is_infinite_at_and_past_the_circle_pole_for_every_rounding(angle, ulps, rho0):
+    """Near ‖χ‖ = ρ₀ the computed d_0 = ρ₀² − χ·χ may round to either sign: within 2 ulps of the circle
+    (d_0 below its rounding bound 16 ε ρ₀²) and beyond it φ = +∞, never the huge negative value a rounded
+    d_0 < 0 used to give; a few ulps inside, φ is finite and huge (> 1e30)."""
+    nf = LocalBarrierNavigationFunction(np.array([0.0, 0.1]), np.zeros((0, 2)), np.array([0.05]), 0.5, 1.0, rho0)
+    u = np.array([math.cos(angle), math.sin(angle)])
+    r = rho0 * (1.0 + ulps * np.finfo(float).eps)
+    phi = nf.evaluate(r * u)[0]
+    assert phi == math.inf if ulps >= -2 else phi > 1e30
+    assert nf.evaluate((rho0 + 0.01) * u)[0] == math.inf
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.floats(0.0, 2.0 * math.pi), st.floats(0.0, 1.0))
+def test_phi_is_never_finite_and_negative_inside_an_obstacle(angle, depth):
+    """Inside a grown disk of the disk-world φ (d_ℓ ≤ 0) φ is +∞, as it is at a point obstacle b_ℓ itself."""
+    c = np.array([103.0, -240.0])  # office coordinates: rounding of x − c_ℓ matters there
+    nf = DiskWorldNavigationFunction(c + [5.0, 0.0], c[None, :], np.array([1.2]), np.array([0.5]), c, 10.0, 0.5)
+    x = c + depth * 1.2 * np.array([math.cos(angle), math.sin(angle)])
+    assert nf.evaluate(x)[0] == math.inf
+    pw = LocalBarrierNavigationFunction(np.array([0.0, 0.1]), np.array([[0.3, 0.1]]), np.array([0.05, 0.01]))
+    assert pw.evaluate(np.array([0.3, 0.1]))[0] == math.inf
+
+
+def test_task_reports_a_fault_past_a_pole_and_drives_nothing():
+    """Past a barrier's pole (here: inside another entity's grown disk) the law is undefined: the evaluation
+    carries a fault naming the state, with zero (finite) input and rates, so the integrator never follows
+    −∇φ out of the free set."""
+    task = local_task([5.0, 0.0], [[2.5, 1.5]], [1.0], [0.0, 0.0], 8.0, AdaptiveGains(), k1=0.25, k2=5.0,
+                      start=[0.0, 0.0])
+    ok = task.evaluate(np.zeros(2), np.zeros(2), 0.5, 0.0)
+    assert ok.fault == "" and np.linalg.norm(ok.u) > 0.0
+    ev = task.evaluate(np.array([2.5, 1.0]), np.array([0.3, 0.0]), 0.5, 0.0)
+    assert "outside the free set" in ev.fault and "x = (2.5000, 1.0000)" in ev.fault
+    assert np.all(ev.u == 0.0) and ev.m_hat_dot == 0.0 and ev.alpha_hat_dot == 0.0
+    assert task.evaluate(np.array([9.0, 0.0]), np.zeros(2), 0.5, 0.0).fault  # outside the rim
 
 
 def test_task_uses_the_maps_circle_deficit(room_map):

@@ -206,7 +206,7 @@ def test_desired_velocity_and_its_time_derivative(office_nav):
     pts = pts[shapely.contains_xy(free, pts[:, 0], pts[:, 1])][:25]
     for x in pts:
         xdot = rng.normal(size=2)
-        v_d, vdot_d, J, g = desired_velocity(pw, nf, x, xdot)
+        v_d, vdot_d, J, g, _ = desired_velocity(pw, nf, x, xdot)
         np.testing.assert_allclose(J @ v_d, -g, atol=1e-12 * np.abs(g).max())
         h = 1e-4 / np.linalg.norm(xdot)
         vp = desired_velocity(pw, nf, x + h * xdot, xdot)[0]

@@ -5,9 +5,11 @@ import io
 
 import pytest
 
+from mrodrake.cli import main
 from mrodrake.errors import UserError
 from mrodrake.logic import cli as logic_cli
-from mrodrake.logic.buchi import NBA, translate
+from mrodrake.logic.hoa import read_hoa
+from mrodrake.logic.translate import translate
 
 
 def _parser():
@@ -35,7 +37,7 @@ def test_prints_one_hoa_automaton_per_formula_in_order():
     assert [b.splitlines()[1] for b in blocks] == ['name: "G F a"', 'name: "a U b"', 'name: "false"']
     for block, text in zip(blocks, ["G F a", "a U b", "false"]):
         assert "Acceptance: 1 Inf(0)" in block and "acc-name: Buchi" in block and "state-acc" in block
-        assert NBA.from_hoa(block) == translate(text)
+        assert read_hoa(block) == translate(text)
 
 
 def test_formula_file(tmp_path):
@@ -86,3 +88,11 @@ def test_spot_translator_option():
     pytest.importorskip("spot")
     code, out = _run(["ltl2nba", "--translator", "spot", "G F a"])
     assert code == 0 and "HOA: v1" in out
+
+
+def test_deeply_nested_formulas_exit_cleanly(capsys):
+    assert main(["ltl2nba", "(" * 3000 + "a" + ")" * 3000]) == 0
+    assert "HOA: v1" in capsys.readouterr().out
+    assert main(["ltl2nba", "X " * 3000 + "a"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("error: formula 1:5601: formula nested deeper than 200") and "Traceback" not in err

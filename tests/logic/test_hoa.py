@@ -6,7 +6,8 @@ from hypothesis import given, settings
 
 from mrodrake.errors import UserError
 from mrodrake.logic import ltl
-from mrodrake.logic.buchi import NBA, translate
+from mrodrake.logic.hoa import read_hoa
+from mrodrake.logic.translate import translate
 from mrodrake.logic.lasso import evaluate_lasso
 
 from .strategies import formulas_3_or_4_props
@@ -44,7 +45,7 @@ def test_hoa_output_format():
 @given(formulas_3_or_4_props(max_depth=4))
 def test_hoa_round_trip(f):
     nba = translate(f)
-    assert NBA.from_hoa(nba.to_hoa(name=str(f))) == nba
+    assert read_hoa(nba.to_hoa(name=str(f))) == nba
 
 
 def test_transition_based_buchi_is_converted_to_state_based():
@@ -62,7 +63,7 @@ State: 0
 [!0] 0
 --END--
 """
-    nba = NBA.from_hoa(hoa)
+    nba = read_hoa(hoa)
     assert nba.ap == ("a",) and nba.num_states == 2 and len(nba.accepting) == 1
     f = ltl.parse("G F a")
     for prefix, cycle in _words(("a",)):
@@ -96,10 +97,10 @@ State: [0&!1] 1 {0}
 1
 --END--"""
     f = ltl.parse("F G (a & !b)")
-    nba = NBA.from_hoa(explicit)
+    nba = read_hoa(explicit)
     for prefix, cycle in _words(("a", "b")):
         assert nba.accepts_lasso(prefix, cycle) == evaluate_lasso(f, prefix, cycle)
-    with_state_labels = NBA.from_hoa(state_labels)
+    with_state_labels = read_hoa(state_labels)
     for prefix, cycle in _words(("a", "b"), seed=1):
         assert with_state_labels.accepts_lasso(prefix, cycle) == evaluate_lasso(f, prefix, cycle)
 
@@ -116,7 +117,7 @@ State: 0
 State: 1 {0}
 1 1 1 1
 --END--"""
-    nba = NBA.from_hoa(hoa)  # letter 1 (a & !b) leads to the accepting sink: F(a & !b)
+    nba = read_hoa(hoa)  # letter 1 (a & !b) leads to the accepting sink: F(a & !b)
     f = ltl.parse("F(a & !b)")
     for prefix, cycle in _words(("a", "b"), seed=2):
         assert nba.accepts_lasso(prefix, cycle) == evaluate_lasso(f, prefix, cycle)
@@ -135,7 +136,7 @@ State: 0
 State: 1
 [!0] 1
 --END--"""
-    nba = NBA.from_hoa(hoa)  # G a | G !a
+    nba = read_hoa(hoa)  # G a | G !a
     f = ltl.parse("G a | G !a")
     for prefix, cycle in _words(("a",), seed=3):
         assert nba.accepts_lasso(prefix, cycle) == evaluate_lasso(f, prefix, cycle)
@@ -161,6 +162,6 @@ State: 1
 ])
 def test_hoa_errors_are_user_errors_with_a_line(text, what):
     with pytest.raises(UserError) as ei:
-        NBA.from_hoa(text, source="aut.hoa")
+        read_hoa(text, source="aut.hoa")
     assert str(ei.value).startswith("aut.hoa:")
     assert what in str(ei.value)

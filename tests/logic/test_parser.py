@@ -10,6 +10,7 @@ from mrodrake.errors import UserError
 from mrodrake.logic import ltl
 from mrodrake.logic.ltl import (FALSE, TRUE, And, Ap, Equiv, F, G, Implies, M, Not, Or, R, U, W, X, Xor,
                                 atoms, parse)
+from mrodrake.logic.translate import translate
 
 from .strategies import formulas
 
@@ -182,3 +183,28 @@ def test_printer_round_trips(f):
     text = ltl.to_str(f)
     assert text == str(f)
     assert parse(text) is f
+
+
+def test_deep_parentheses_parse_without_recursion():
+    """Parentheses add no depth to the syntax tree; the parser uses explicit stacks, so 3,000 of them parse."""
+    assert parse("(" * 3000 + "a" + ")" * 3000) is a
+    assert parse("(" * 3000 + "a U b" + ")" * 3000 + " & c") is And(U(a, b), c)
+    with pytest.raises(UserError, match=r"formula:3000: unclosed '\('"):  # the innermost one
+        parse("(" * 3000 + "a")
+
+
+def test_trees_up_to_the_depth_limit_translate_and_deeper_ones_are_rejected_at_their_operator():
+    f = parse("X " * (ltl.MAX_DEPTH - 1) + "a")
+    assert f.depth == ltl.MAX_DEPTH
+    assert translate(f).num_states == ltl.MAX_DEPTH + 1  # X^199 a: a chain of 200 states plus the sink
+    with pytest.raises(UserError) as ei:
+        parse("X " * ltl.MAX_DEPTH + "a")
+    assert str(ei.value) == f"formula:1: formula nested deeper than {ltl.MAX_DEPTH} operators (the limit of the LTL translation)"
+    assert ei.value.detail.splitlines()[1] == "^"  # the outermost X, at column 1
+
+
+def test_deep_macro_chains_are_rejected_with_the_macro_named():
+    macros = {f"m{i}": f"m{i + 1}" for i in range(ltl.MAX_DEPTH + 5)}
+    macros[f"m{ltl.MAX_DEPTH + 5}"] = "a"
+    with pytest.raises(UserError, match=r"^task\.propositions\.m\d+: macros nested deeper than"):
+        parse("m0", macros, macro_prefix="task.propositions.")

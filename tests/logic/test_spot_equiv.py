@@ -3,8 +3,10 @@
 import pytest
 
 from mrodrake.logic import ltl
-from mrodrake.logic.bench import load_case_study_formulas, load_dwyer_patterns
-from mrodrake.logic.buchi import NBA, translate
+from mrodrake.logic.data import load_case_study_formulas, load_dwyer_patterns
+from mrodrake.logic.hoa import read_hoa
+from mrodrake.logic.nba import NBA
+from mrodrake.logic.translate import translate
 
 spot = pytest.importorskip("spot")
 
@@ -67,5 +69,5 @@ def test_transition_based_hoa_from_spot_is_read_correctly():
         aut = spot.translate(text, "TGBA")
         if aut.num_sets() > 1:
             aut = spot.degeneralize_tba(aut)
-        nba = NBA.from_hoa(aut.to_str("hoa"))
+        nba = read_hoa(aut.to_str("hoa"))
         assert _equivalent(nba, text)

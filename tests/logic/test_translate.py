@@ -10,9 +10,10 @@ from hypothesis import strategies as st
 
 from mrodrake.errors import UserError
 from mrodrake.logic import ltl
-from mrodrake.logic.bench import load_case_study_formulas, load_dwyer_patterns
-from mrodrake.logic.buchi import NBA, TRUE_GUARD, guard_implies, simplify_guard, translate
+from mrodrake.logic.data import load_case_study_formulas, load_dwyer_patterns
 from mrodrake.logic.lasso import evaluate_lasso
+from mrodrake.logic.nba import NBA, TRUE_GUARD, guard_implies, simplify_guard
+from mrodrake.logic.translate import translate
 
 from .strategies import formulas_3_or_4_props, lassos
 

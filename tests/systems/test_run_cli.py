@@ -1,11 +1,18 @@
-"""``mrodrake run --plan``: plan files are loaded and verified before any simulation; user errors exit 2."""
+"""``mrodrake run``: plan files and the output directory are checked before any simulation (user errors exit 2);
+failures inside the simulation end the mission cleanly with its logs (exit 1)."""
 
 import json
+import re
 from pathlib import Path
 
+import pandas as pd
+
 from mrodrake import cli
+from mrodrake.control.adaptive import NavigationTask
 from mrodrake.planning.plan import plan_scenario
 from mrodrake.scenario import load_scenario
+from mrodrake.systems import mission as mission_module
+from mrodrake.systems.mission import run_mission
 
 ROOT = Path(__file__).resolve().parents[2]
 TINY = ROOT / "scenarios" / "tiny.yaml"
@@ -32,3 +39,70 @@ def test_plan_that_does_not_verify_is_a_user_error(tmp_path, capsys):
     err = capsys.readouterr().err.strip().splitlines()
     assert code == 2 and len(err) == 1 and err[0].startswith(f"error: {path}: plan does not verify"), err
     assert not (tmp_path / "out").exists()
+
+
+def test_unwritable_output_directory_fails_before_planning(capsys):
+    assert cli.main(["run", str(TINY), "--out", "/proc/forbidden/out"]) == 2
+    captured = capsys.readouterr()
+    err = captured.err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("error: --out: cannot write to '/proc/forbidden/out'"), err
+    assert "planning" not in captured.err  # nothing was planned or simulated
+
+
+def _fail_transports(monkeypatch):
+    """Make the first transport's plant raise Drake's integrator failure from inside the simulation."""
+    original = mission_module.SyncedCoupledPlant.DoCalcTimeDerivatives
+
+    def failing(self, context, derivatives):
+        if not self.sync_port.Eval(context).frozen and context.get_time() > 1.0:
+            raise RuntimeError("Error control wants to select step smaller than minimum allowed (2.0e-11)\nmore")
+        original(self, context, derivatives)
+
+    monkeypatch.setattr(mission_module.SyncedCoupledPlant, "DoCalcTimeDerivatives", failing)
+
+
+def test_exception_inside_the_simulation_is_a_failed_primitive_with_logs(tmp_path, capsys, monkeypatch):
+    """A mission that dies in the integrator fails in one line naming the primitive, its step and the
+    simulated time, exits 1 without a traceback, and still writes every log."""
+    _fail_transports(monkeypatch)
+    out = tmp_path / "out"
+    assert cli.main(["run", str(TINY), "--out", str(out)]) == 1
+    captured = capsys.readouterr()
+    assert "Traceback" not in captured.err + captured.out
+    line = next(x for x in captured.out.splitlines() if x.startswith("tiny: FAILED: "))
+    assert re.search(r"FAILED: transport o1 by r1\+r2 p\d->p\d \(step \d+, plan step \d+\) failed at t = "
+                     r"\d+\.\d\d s: integrator failure \(Error control wants to select step smaller than minimum "
+                     r"allowed \(2\.0e-11\)\)$", line), line
+    for name in ("plan.json", "trajectory.csv", "signals.csv", "events.csv", "replay.html", "figures/fig1_initial.png"):
+        assert (out / name).is_file(), name
+    ev = pd.read_csv(out / "events.csv")
+    failed = ev[(ev["kind"] == "primitive") & (~ev["ok"].astype(bool))]
+    assert len(failed) == 1 and failed.iloc[0]["action"].startswith("transport o1")
+
+
+def test_controller_fault_ends_the_primitive(tmp_path, monkeypatch):
+    """A state past a barrier's pole (here: faked beyond x = 20 m) ends the primitive at the next step with
+    the controller's fault, instead of integrating on."""
+    original = NavigationTask.evaluate
+
+    def evaluate(self, x, xdot, m_hat, alpha_hat):
+        if x[0] > 20.0:
+            return self._fault(x, "is outside the free set (test)")
+        return original(self, x, xdot, m_hat, alpha_hat)
+
+    monkeypatch.setattr(NavigationTask, "evaluate", evaluate)
+    log = run_mission(load_scenario(TINY), seed=0, out_dir=tmp_path)
+    assert not log.ok
+    assert re.search(r"failed at t = \d+\.\d\d s: controller fault of \S+: x = \(20\.\d{4}, [\d.]+\) is outside "
+                     r"the free set \(test\)$", log.message), log.message
+    last = log.trajectory[log.trajectory["t"] == log.trajectory["t"].max()]
+    assert last["x"].max() < 20.5  # stopped right after crossing, not integrated on
+
+
+def test_write_failure_keeps_what_it_can(tmp_path, capsys):
+    out = tmp_path / "out"
+    (out / "events.csv").mkdir(parents=True)  # a directory where a file should go
+    assert cli.main(["run", str(TINY), "--out", str(out)]) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err[-1].startswith(f"error: could not write 1 output file(s) to {out}/ (events.csv: ")
+    assert (out / "trajectory.csv").is_file() and (out / "replay.html").is_file()

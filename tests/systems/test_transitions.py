@@ -36,7 +36,7 @@ from mrodrake.control.pointworld import PointWorldMap
 from mrodrake.errors import UserError
 from mrodrake.geometry import polygon
 from mrodrake.scenario import load_scenario
-from mrodrake.systems.controllers import NavigationController, TransportController
+from mrodrake.systems.controllers import NavigationController, TaskCommand, TransportController
 from mrodrake.systems.transition import entity_layout, simulate_transition
 from mrodrake.viz.figures import figure_signals, figure_trajectory
 
@@ -251,20 +251,24 @@ def test_controller_dependencies_allow_supervisor_routing(room_task):
         TransportController(["a", "b", "c"], ctrl._task)
 
 
-def test_new_task_resets_the_estimates(room_task):
-    """A supervisor swapping tasks: estimates restart from the new task's m̂(0), α̂(0) at the next step."""
+def test_new_episode_resets_the_estimates_and_a_new_task_within_it_does_not(room_task):
+    """A supervisor swapping tasks: within one episode (one primitive switching to the local law, or to its
+    next leg) m̂, α̂ carry over; a new episode restarts them from its task's m̂(0), α̂(0) at the next step."""
     ctrl = NavigationController(room_task)
     ctx = ctrl.CreateDefaultContext()
     ctrl.state_port.FixValue(ctx, [3.0, 4.0, 1.0, 1.0])
-    ctrl.task_port.FixValue(ctx, AbstractValue.Make(room_task))
+    ctrl.task_port.FixValue(ctx, AbstractValue.Make(TaskCommand(room_task, 1)))
     sim = Simulator(ctrl, ctx)
     sim.AdvanceTo(1.0)
     moved = ctx.get_continuous_state_vector().CopyToVector()
     assert moved[1] > 0.1  # α̂ grew (‖e_v‖ > 0)
     other = NavigationTask(room_task.pw_map, room_task.nf, room_task.goal, AdaptiveGains(m_hat0=5.0, alpha_hat0=2.0),
                            room_task.cf)
-    ctrl.task_port.FixValue(ctx, AbstractValue.Make(other))
+    ctrl.task_port.FixValue(ctx, AbstractValue.Make(TaskCommand(other, 1)))
     sim.AdvanceTo(1.0 + 1e-9)
+    np.testing.assert_allclose(ctx.get_continuous_state_vector().CopyToVector(), moved, rtol=1e-6)
+    ctrl.task_port.FixValue(ctx, AbstractValue.Make(TaskCommand(other, 2)))
+    sim.AdvanceTo(1.0 + 2e-9)
     np.testing.assert_allclose(ctx.get_continuous_state_vector().CopyToVector(), [5.0, 2.0], atol=1e-6)
 
 
