@@ -337,6 +337,8 @@ FAILURE_PATTERNS: tuple[tuple[str, str, tuple[str, ...]], ...] = (
     ("mission", "outside_free_space", ("not in the free space",)),
     ("mission", "degenerate_map", ("degenerate",)),
     ("mission", "non_finite", ("non-finite", "not finite")),
+    ("mission", "controller_fault", ("controller fault",)),
+    ("mission", "exception", ("inside the simulation",)),
 )
 #: Kind when no pattern matches: per stage, and for an exception or a failed mission log.
 DEFAULT_KINDS = {"plan": "plan_error", "exception": "exception", "log": "mission_failed"}
