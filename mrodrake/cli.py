@@ -1,4 +1,4 @@
-"""The ``mrodrake`` command line: validate, ts, ltl2nba, plan, run, bench.
+"""The ``mrodrake`` command line: validate, ts, ltl2nba, plan, run, campaign, bench.
 
 User errors print ``error: <one line>`` (plus a caret line for formula errors) and exit with status 2;
 Ctrl-C exits with status 130 without a traceback.
@@ -109,6 +109,7 @@ def build_parser() -> argparse.ArgumentParser:
                    "(with costs and actions) as JSON")
     p.set_defaults(func=_cmd_ts)
 
+    from mrodrake import campaign
     from mrodrake.logic import cli as logic_cli
     from mrodrake.planning import cli as plan_cli
     from mrodrake.systems import run_cli
@@ -116,6 +117,7 @@ def build_parser() -> argparse.ArgumentParser:
     logic_cli.add_subparser(sub)
     plan_cli.add_subparser(sub)
     run_cli.add_subparser(sub)
+    campaign.add_subparser(sub)
 
     p = sub.add_parser("bench", help="benchmarks (not tests)", description="Run a benchmark and print a table: "
                        "ts (TS construction), ltl (LTL->NBA vs Spot), plan (planners), control (map and one "

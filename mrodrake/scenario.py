@@ -258,7 +258,7 @@ def _node_line(root: yaml.Node | None, loc: tuple) -> int | None:
     return line
 
 
-class _Where:
+class Where:
     """Formats locations of a loaded file: ``file:line: path``."""
 
     def __init__(self, source: str, root: yaml.Node | None):
@@ -277,6 +277,7 @@ _PYDANTIC_MESSAGES = {
     "float_type": "expected a number",
     "int_type": "expected an integer",
     "string_type": "expected a string",
+    "bool_type": "expected true or false",
     "list_type": "expected a list",
     "tuple_type": "expected a list [x, y]",
     "dict_type": "expected a mapping",
@@ -288,17 +289,23 @@ _PYDANTIC_MESSAGES = {
 }
 
 
+def _bound(value) -> str:
+    return format(value, "g") if isinstance(value, (int, float)) else str(value)
+
+
 def _pydantic_message(err: dict) -> str:
     kind = err["type"]
     msg = _PYDANTIC_MESSAGES.get(kind)
     if msg is None:
         ctx = err.get("ctx") or {}
         if kind == "greater_than":
-            return f"must be > {ctx.get('gt')}"
+            return f"must be > {_bound(ctx.get('gt'))}"
         if kind == "greater_than_equal":
-            return f"must be >= {ctx.get('ge')}"
+            return f"must be >= {_bound(ctx.get('ge'))}"
         if kind == "less_than_equal":
-            return f"must be <= {ctx.get('le')}"
+            return f"must be <= {_bound(ctx.get('le'))}"
+        if kind == "less_than":
+            return f"must be < {_bound(ctx.get('lt'))}"
         msg = err["msg"]
     return msg
 
@@ -313,8 +320,13 @@ def _yaml_error(source: str, exc: yaml.YAMLError) -> UserError:
     return UserError(f"{source}: malformed YAML: {problem}")
 
 
-def parse_scenario(text: str, source: str = "<scenario>") -> Scenario:
-    """Parse and fully validate scenario YAML text; raise UserError naming the file line and field."""
+def parse_typed(text: str, source: str, adapter: TypeAdapter, top_level: str) -> tuple[Any, Where]:
+    """Parse YAML ``text`` into ``adapter``'s type; return (value, where) for the semantic checks.
+
+    Malformed YAML, duplicate keys, a top level that is not a mapping (``top_level`` lists the expected
+    fields) and the first pydantic error raise a one-line UserError ``source:line: field.path: problem``.
+    Shared by scenario files and campaign specs.
+    """
     try:
         root = yaml.compose(text, Loader=_UniqueKeyLoader)
         data = yaml.load(text, Loader=_UniqueKeyLoader)
@@ -322,29 +334,38 @@ def parse_scenario(text: str, source: str = "<scenario>") -> Scenario:
         raise UserError(f"{source}: {e}") from None
     except yaml.YAMLError as e:
         raise _yaml_error(source, e) from None
-    where = _Where(source, root)
+    where = Where(source, root)
     if not isinstance(data, dict):
-        raise UserError(f"{source}: expected a mapping at the top level (name, workspace, regions, ...)")
+        raise UserError(f"{source}: expected a mapping at the top level ({top_level})")
     try:
-        scenario = _ADAPTER.validate_python(data)
+        value = adapter.validate_python(data)
     except ValidationError as e:
         err = e.errors()[0]
         loc = tuple(p for p in err["loc"] if p != "__root__")
         raise UserError(f"{where(loc)}: {_pydantic_message(err)}") from None
+    return value, where
+
+
+def parse_scenario(text: str, source: str = "<scenario>") -> Scenario:
+    """Parse and fully validate scenario YAML text; raise UserError naming the file line and field."""
+    scenario, where = parse_typed(text, source, _ADAPTER, "name, workspace, regions, ...")
     check_scenario(scenario, where)
     return scenario
 
 
-def load_scenario(path: str | Path) -> Scenario:
-    """Read a scenario YAML file and validate it (see :func:`parse_scenario`)."""
-    p = Path(path)
+def read_text(path: str | Path) -> str:
+    """A UTF-8 text file's contents; a missing or unreadable file is a one-line UserError."""
     try:
-        text = p.read_text(encoding="utf-8")
+        return Path(path).read_text(encoding="utf-8")
     except FileNotFoundError:
         raise UserError(f"{path}: no such file") from None
     except (OSError, UnicodeDecodeError) as e:
         raise UserError(f"{path}: cannot read: {e}") from None
-    return parse_scenario(text, source=str(path))
+
+
+def load_scenario(path: str | Path) -> Scenario:
+    """Read a scenario YAML file and validate it (see :func:`parse_scenario`)."""
+    return parse_scenario(read_text(path), source=str(path))
 
 
 def scenario_from_dict(data: dict[str, Any], source: str = "<dict>") -> Scenario:
@@ -367,7 +388,7 @@ def entities_fit(region_radius: float, radii, spacing: float) -> bool:
     return fits(region_radius - half, sorted((float(r) + half for r in radii), reverse=True))
 
 
-def _check_names(s: Scenario, where: _Where) -> None:
+def _check_names(s: Scenario, where: Where) -> None:
     seen: dict[str, tuple] = {}
     for group in ("robots", "objects", "regions"):
         for i, item in enumerate(getattr(s, group)):
@@ -400,7 +421,7 @@ def _check_names(s: Scenario, where: _Where) -> None:
         raise UserError(f"{where(('regions',))}: at least one region is required")
 
 
-def _check_geometry(s: Scenario, where: _Where) -> None:
+def _check_geometry(s: Scenario, where: Where) -> None:
     from mrodrake import geometry as geo
 
     problem = geo.ring_problem(s.workspace.boundary)
@@ -438,7 +459,7 @@ def _check_geometry(s: Scenario, where: _Where) -> None:
                                 f"(centres {dist:.3g} m apart, radii sum {reg.radius + other.radius:.3g} m)")
 
 
-def _check_initial(s: Scenario, where: _Where) -> None:
+def _check_initial(s: Scenario, where: Where) -> None:
     regions = {g.name: g for g in s.regions}
     members: dict[str, list[float]] = {g: [] for g in regions}
     for group in ("robots", "objects"):
@@ -455,7 +476,7 @@ def _check_initial(s: Scenario, where: _Where) -> None:
                             f"{s.layout.spacing} m)")
 
 
-def _check_task(s: Scenario, where: _Where) -> None:
+def _check_task(s: Scenario, where: Where) -> None:
     from mrodrake.logic.ltl import atoms, parse
 
     macros = dict(s.task.propositions)
@@ -478,9 +499,9 @@ def _check_task(s: Scenario, where: _Where) -> None:
                                 f"(regions: {', '.join(regions)})")
 
 
-def check_scenario(s: Scenario, where: _Where | None = None) -> None:
+def check_scenario(s: Scenario, where: Where | None = None) -> None:
     """Semantic validation: names, geometry, initial packing, task (raises UserError)."""
-    where = where or _Where("<scenario>", None)
+    where = where or Where("<scenario>", None)
     _check_names(s, where)
     _check_geometry(s, where)
     _check_initial(s, where)
