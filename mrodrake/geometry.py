@@ -13,6 +13,7 @@ from typing import Sequence
 import numpy as np
 import shapely
 from shapely.geometry import LinearRing, Point, Polygon
+from shapely.ops import unary_union
 from shapely.validation import explain_validity
 
 #: Segments per quarter circle used when a disk is turned into a polygon.
@@ -96,3 +97,92 @@ def grasp_layout(object_radius: float, robot_radii: Sequence[float], gap: float)
     offsets = d * np.column_stack([np.cos(angles), np.sin(angles)])
     cover = max(d + max(radii), object_radius)
     return GraspLayout(offsets, float(cover), float(d))
+
+
+#: Clearance (m) a moving entity keeps from walls, workspace obstacles and other regions beyond its radius
+#: (the controllers' numerical margin, see :mod:`mrodrake.control.freespace`).
+CONTROL_MARGIN = 0.5
+#: Erosion (m) of a free space beyond radius and margin: opens pinch points where enlarged obstacles touch.
+FREE_SPACE_SAFETY = 1e-3
+_CHORD = 1.0 / math.cos(math.pi / (4 * DISK_QUAD_SEGS))
+
+
+class RegionGraph:
+    """Which regions an entity of a given radius can travel between.
+
+    The travel space of a trip from region k to k' is where the entity's centre may be: the workspace shrunk
+    by r + margin, minus the obstacles and the regions other than k and k' grown by r + margin (the
+    controllers avoid other regions), eroded by ``safety``; other entities are ignored (they can be moved).
+    k and k' are connected when one component of it meets the seats of both (the centres whose ball lies in
+    the region).  A narrow passage, or another region in the way, separates them.
+
+    Queries are answered per pair and cached: radii are rounded up to :data:`RADIUS_STEP` (a larger radius
+    only removes connections, so this is conservative), and since connectivity can only be lost as the
+    radius grows, every answer bounds the others (connected at r ⇒ connected below r)."""
+
+    RADIUS_STEP = 0.01
+
+    def __init__(self, boundary: Polygon, obstacles: Sequence[Polygon],
+                 regions: Sequence[tuple[Sequence[float], float]], margin: float = CONTROL_MARGIN,
+                 safety: float = FREE_SPACE_SAFETY):
+        self.boundary, self.obstacles = boundary, list(obstacles)
+        self.regions = [(tuple(map(float, c)), float(R)) for c, R in regions]
+        self.margin, self.safety = float(margin), float(safety)
+        K = len(self.regions)
+        self._yes = np.zeros((K, K))           # largest radius known connected
+        self._no = np.full((K, K), np.inf)     # smallest radius known separated
+        self._base: dict[float, tuple] = {}
+        self._matrix: dict[float, np.ndarray] = {}
+
+    def _key(self, radius: float) -> float:
+        return math.ceil(float(radius) / self.RADIUS_STEP - 1e-9) * self.RADIUS_STEP
+
+    def connected(self, radius: float, k: int, k2: int) -> bool:
+        r = self._key(radius)
+        if r <= self._yes[k, k2]:
+            return True
+        if r >= self._no[k, k2]:
+            return False
+        ok = self._compute(r, k, k2)
+        if ok:
+            self._yes[k, k2] = self._yes[k2, k] = max(self._yes[k, k2], r)
+        else:
+            self._no[k, k2] = self._no[k2, k] = min(self._no[k, k2], r)
+        return ok
+
+    def matrix(self, radius: float) -> np.ndarray:
+        """``C[k, k']``: are regions k and k' connected for an entity of ``radius`` (C[k, k]: the region
+        has a seat)?"""
+        r = self._key(radius)
+        C = self._matrix.get(r)
+        if C is None:
+            K = len(self.regions)
+            C = np.array([[self.connected(r, k, k2) for k2 in range(K)] for k in range(K)], dtype=bool)
+            self._matrix[r] = C
+        return C
+
+    def _geometry(self, r: float) -> tuple:
+        hit = self._base.get(r)
+        if hit is None:
+            grow = (r + self.margin) * _CHORD
+            base = self.boundary.buffer(-grow, quad_segs=DISK_QUAD_SEGS)
+            if self.obstacles:
+                base = base.difference(unary_union([o.buffer(grow, quad_segs=DISK_QUAD_SEGS) for o in self.obstacles]))
+            grown = [disk(c, R).buffer(grow, quad_segs=DISK_QUAD_SEGS) for c, R in self.regions]
+            hit = (base, grown)
+            self._base[r] = hit
+        return hit
+
+    def _compute(self, r: float, k: int, k2: int) -> bool:
+        (c1, R1), (c2, R2) = self.regions[k], self.regions[k2]
+        if R1 <= r or R2 <= r:
+            return False
+        base, grown = self._geometry(r)
+        others = [grown[m] for m in range(len(self.regions)) if m not in (k, k2)]
+        free = base.difference(unary_union(others)) if others else base
+        if self.safety > 0.0:
+            free = free.buffer(-self.safety, join_style="mitre")
+        seat1 = Point(*c1).buffer(R1 - r, quad_segs=DISK_QUAD_SEGS)
+        seat2 = Point(*c2).buffer(R2 - r, quad_segs=DISK_QUAD_SEGS)
+        return any(not p.is_empty and p.intersects(seat1) and p.intersects(seat2)
+                   for p in getattr(free, "geoms", [free]))

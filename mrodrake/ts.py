@@ -10,12 +10,14 @@ entities fit (P_s): free robots (radius r_i), ungrasped objects (r^o_j) and robo
 
 A transition s → s' is a set of simultaneous actions, one per robot (all idle = self-loop):
 
-* a free robot (free in s and s') stays or navigates to any other region (π_k →_i π_k');
+* a free robot (free in s and s') stays or navigates to another region (π_k →_i π_k') connected to its own
+  for its radius (a passage wide enough, no other region in the way: :meth:`TransitionSystem.connections`);
 * grasp i →g j: i free in s, grasping j in s', co-located with j, region unchanged, j not moving;
 * release i →r j: i grasping j in s, free in s', region unchanged, j not moving;
 * a robot grasping j in s and s' moves iff j moves, to the same region;
-* object j moves (π_k →T_{A,j} π_k') only if the same non-empty team A grasps it in s and s' and
-  Λ holds: Σ_{i∈A} ζ_i ≥ required power of j; a robot never switches objects in one step;
+* object j moves (π_k →T_{A,j} π_k') only if the same non-empty team A grasps it in s and s', Λ holds:
+  Σ_{i∈A} ζ_i ≥ required power of j, and π_k, π_k' are connected for the team's covering radius r_A,j;
+  a robot never switches objects in one step;
 * both states valid, and the step fits while it is executed one action at a time (:meth:`TransitionSystem.step_fits`:
   where a region loses and gains entities in one step, everything that is in it at the start or at the end
   fits together).
@@ -36,7 +38,7 @@ import numpy as np
 from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import breadth_first_order
 
-from mrodrake.geometry import grasp_layout
+from mrodrake.geometry import RegionGraph, grasp_layout, polygon
 from mrodrake.scenario import Scenario, entities_fit
 
 State = tuple
@@ -109,6 +111,7 @@ class TransitionSystem:
         self._valid: dict[State, bool] = {}
         self._label: dict[State, int] = {}
         self._pairs: dict[tuple, list[tuple[int, int]]] = {}
+        self._graph: RegionGraph | None = None
         self.initial = tuple(
             [self._region_index[r.initial_region] for r in scenario.robots]
             + [self._region_index[o.initial_region] for o in scenario.objects]
@@ -145,6 +148,38 @@ class TransitionSystem:
             r = grasp_layout(self.object_radius[j], [self.robot_radius[i] for i in team], self.grasp_gap).covering_radius
             self._cover[key] = r
         return r
+
+    @property
+    def region_graph(self) -> RegionGraph:
+        if self._graph is None:
+            ws = self.scenario.workspace
+            self._graph = RegionGraph(polygon(ws.boundary), [polygon(o.polygon) for o in ws.obstacles],
+                                      [(g.center, g.radius) for g in self.scenario.regions])
+        return self._graph
+
+    def connections(self, radius: float) -> np.ndarray:
+        """``C[k, k']``: can an entity of ``radius`` travel between regions k and k'
+        (:class:`~mrodrake.geometry.RegionGraph`: narrow passages and regions in the way block it)."""
+        return self.region_graph.matrix(radius)
+
+    def connected(self, radius: float, k: int, k2: int) -> bool:
+        return self.region_graph.connected(radius, k, k2)
+
+    def blocked(self, s: State, t: State) -> str | None:
+        """Why a region change of s → t cannot be travelled (None when every one can)."""
+        N, M = self.N, self.M
+        for a in self.actions(s, t):
+            if isinstance(a, Navigate):
+                r, who = self.robot_radius[a.robot], f"robot {self.robot_names[a.robot]}"
+            elif isinstance(a, Transport):
+                r = self.covering_radius(a.obj, a.team)
+                who = f"object {self.object_names[a.obj]} with team {'+'.join(self.robot_names[i] for i in a.team)}"
+            else:
+                continue
+            if not self.connected(r, a.src, a.dst):
+                return (f"{who} (radius {r:.2f} m) cannot travel from {self.region_names[a.src]} to "
+                        f"{self.region_names[a.dst]}: no passage wide enough")
+        return None
 
     # ------------------------------------------------------------------ validity
     def region_fits(self, k: int, radii: Sequence[float]) -> bool:
@@ -330,7 +365,7 @@ class TransitionSystem:
                     return f"team {{{', '.join(self.robot_names[i] for i in team)}}} lacks the power to move {self.object_names[j]} (Λ)"
         if not self.step_fits(s, t):
             return "the step's arrivals do not fit next to the entities that leave the same region (P_s)"
-        return None
+        return self.blocked(s, t)
 
     def actions(self, s: State, t: State) -> tuple[Action, ...]:
         """The actions of s → t (recovered from the two states; empty for the self-loop)."""
@@ -352,21 +387,25 @@ class TransitionSystem:
         """The action rules: for every admissible combination of object destinations, one key per robot
         naming its admissible (region', grasp') choices (see :meth:`option_pairs`):
 
-        * ``(region, -1, graspable)`` free robot: stay, navigate anywhere, or grasp a co-located object
-          in ``graspable`` (objects that do not move in this step);
+        * ``(region, -1, graspable, i)`` free robot i: stay, navigate to any region connected to its own for
+          its radius (:meth:`connected`), or grasp a co-located object in ``graspable`` (objects that do not
+          move in this step);
         * ``(region, j, None)`` robot grasping j while j stays: keep grasping or release;
         * ``(region', j, True)`` robot grasping j while j moves to region' with the team.
         """
         N, M, K = self.N, self.M, self.K
         R, O, G = s[:N], s[N : N + M], s[N + M :]
         team_power = [0.0] * M
+        teams: list[tuple[int, ...]] = [()] * M
         for i in range(N):
             if G[i] >= 0:
                 team_power[G[i]] += self.power[i]
+                teams[G[i]] += (i,)
         obj_opts = []
         for j in range(M):
             if team_power[j] > 0 and team_power[j] >= self.required_power[j]:
-                obj_opts.append([O[j]] + [k for k in range(K) if k != O[j]])
+                C = self.connections(self.covering_radius(j, teams[j]))
+                obj_opts.append([O[j]] + [k for k in range(K) if k != O[j] and C[O[j], k]])
             else:
                 obj_opts.append([O[j]])
         for dests in itertools.product(*obj_opts):
@@ -378,7 +417,7 @@ class TransitionSystem:
             for i in range(N):
                 g = G[i]
                 if g < 0:
-                    keys.append((R[i], -1, staying[R[i]]))
+                    keys.append((R[i], -1, staying[R[i]], i))
                 else:
                     keys.append((dests[g], g, True) if dests[g] != O[g] else (R[i], g, None))
             yield dests, keys
@@ -387,9 +426,10 @@ class TransitionSystem:
         """The admissible (region', grasp') pairs of an option key (cached)."""
         pairs = self._pairs.get(key)
         if pairs is None:
-            r, g, extra = key
+            r, g, extra = key[:3]
             if g < 0:
-                pairs = [(r, -1)] + [(k, -1) for k in range(self.K) if k != r] + [(r, j) for j in extra]
+                C = self.connections(self.robot_radius[key[3]])
+                pairs = [(r, -1)] + [(k, -1) for k in range(self.K) if k != r and C[r, k]] + [(r, j) for j in extra]
             elif extra is None:
                 pairs = [(r, g), (r, -1)]
             else:

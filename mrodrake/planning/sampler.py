@@ -100,7 +100,7 @@ class SuccessorSampler:
         self.stats["random"] += 1
         for _ in range(self.tries):
             t = self._random_once(s)
-            if self.ts.is_valid(t):
+            if self._successor(s, t):
                 return t
         self.stats["random_fail"] += 1
         return s
@@ -112,7 +112,7 @@ class SuccessorSampler:
         if not units:
             return None
         t = self._apply(s, units)
-        if self.ts.is_valid(t):
+        if self._successor(s, t):
             return t
         rng = self.rng
         for _ in range(self.tries):
@@ -120,12 +120,18 @@ class SuccessorSampler:
             if not keep:
                 continue
             t = self._apply(s, keep)
-            if self.ts.is_valid(t):
+            if self._successor(s, t):
                 return t
         self.stats["toward_fail"] += 1
         return None
 
     # ------------------------------------------------------------------------------------------ helpers
+    def _successor(self, s: State, t: State) -> bool:
+        """t is valid, its region changes can be travelled and the step fits (the action rules hold by
+        construction of the units)."""
+        ts = self.ts
+        return ts.is_valid(t) and ts.step_fits(s, t) and ts.blocked(s, t) is None
+
     def _apply(self, s: State, units: list[tuple]) -> State:
         """Apply units: ('T', j, dst, team), ('G', i, j), ('R', i), ('N', i, dst)."""
         N, M = self.N, self.M
@@ -287,8 +293,11 @@ class SuccessorSampler:
         for j in range(M):
             team = teams[j]
             if team and sum(self.power[i] for i in team) >= self.required_power[j] and rng.random() < 0.5:
-                k2 = int(rng.integers(K - 1))
-                k2 += k2 >= O[j]
+                C = self.ts.connections(self.ts.covering_radius(j, tuple(team)))[O[j]]
+                dests = [k for k in range(K) if k != O[j] and C[k]]
+                if not dests:
+                    continue
+                k2 = dests[int(rng.integers(len(dests)))]
                 t[N + j] = k2
                 stays[j] = False
                 for i in team:
@@ -302,12 +311,14 @@ class SuccessorSampler:
             if rng.random() < self.p_idle:
                 continue
             grasps = [j for j in range(M) if O[j] == R[i] and stays[j]]
-            n_opts = (K - 1) + len(grasps)
+            C = self.ts.connections(self.ts.robot_radius[i])[R[i]]
+            dests = [k for k in range(K) if k != R[i] and C[k]]
+            n_opts = len(dests) + len(grasps)
             if n_opts == 0:
                 continue
             c = int(rng.integers(n_opts))
-            if c < K - 1:
-                t[i] = c + (c >= R[i])
+            if c < len(dests):
+                t[i] = dests[c]
             else:
-                t[N + M + i] = grasps[c - (K - 1)]
+                t[N + M + i] = grasps[c - len(dests)]
         return tuple(t)

@@ -123,7 +123,13 @@ def interleavings(cross: Sequence[Crossing]) -> Iterator[list[tuple[int, int]]]:
 
 class ExecutedWords:
     """The executed-word semantics (module docstring) of a TS and an NBA over ``ts.propositions``;
-    ``relevant`` is the AP_φ mask (:func:`relevant_mask`).  All queries are cached."""
+    ``relevant`` is the AP_φ mask (:func:`relevant_mask`).  All queries are cached; every answer is a pure
+    function of the step (never of earlier queries)."""
+
+    #: Complete orders of a step's visible actions tried per query (4! = 24: every order up to four).
+    max_orders = 24
+    #: Order prefixes explored per query (4 visible actions have 65).
+    max_nodes = 256
 
     def __init__(self, ts: TransitionSystem, nba: NBA, relevant: int):
         if tuple(nba.ap) != tuple(ts.propositions):
@@ -137,7 +143,6 @@ class ExecutedWords:
         self._succ_bits: dict[int, list[int]] = {}
         self._delta: dict[tuple[int, int], int] = {}
         self._lattice: dict[tuple, tuple[frozenset, int]] = {}
-        self._search_memo: dict[tuple, dict[int, tuple[int, ...]]] = {}
         self._step: dict[tuple, list[dict[int, tuple[int, ...]]]] = {}
         self._matrix: dict[tuple, np.ndarray] = {}
         self._label_matrix: dict[int, np.ndarray] = {}
@@ -193,33 +198,39 @@ class ExecutedWords:
         self._lattice[key] = out
         return out
 
-    def _search(self, F: frozenset, mask: int, sig: tuple, left: int) -> dict[int, tuple[int, ...]]:
-        """q' -> an order of the visible actions still ``left`` (bit mask) that reaches q' for every
-        interleaving, from the family F."""
-        key = (F, mask, sig, left)
-        hit = self._search_memo.get(key)
-        if hit is not None:
-            return hit
+    def _search(self, q: int, mask: int, sig: tuple) -> dict[int, tuple[int, ...]]:
+        """q' -> the first order of the visible actions (lexicographic over their canonical indices,
+        canonical order first) that reaches q' from q for every interleaving.  At most :attr:`max_orders`
+        complete orders are tried (all of them up to four visible actions) and at most :attr:`max_nodes`
+        prefixes, so the result is a pure function of the step; an edge only another order would give is not
+        used (sound, possibly incomplete)."""
         out: dict[int, tuple[int, ...]] = {}
-        if left == 0:
-            common = -1
-            for S in F:
-                common &= S
-            q = 0
-            while common > 0:
-                if common & 1:
-                    out[q] = ()
-                common >>= 1
-                q += 1
-        else:
-            for i in range(len(sig)):
+        n = len(sig)
+        budget = [self.max_orders, self.max_nodes]
+
+        def rec(F: frozenset, m: int, left: int, prefix: tuple[int, ...]) -> None:
+            if budget[0] <= 0 or budget[1] <= 0:
+                return
+            budget[1] -= 1
+            if left == 0:
+                budget[0] -= 1
+                common = -1
+                for S in F:
+                    common &= S
+                d = 0
+                while common > 0:
+                    if common & 1:
+                        out.setdefault(d, prefix)
+                    common >>= 1
+                    d += 1
+                return
+            for i in range(n):
                 if left >> i & 1:
-                    F2, m2 = self._after_action(F, mask, sig[i])
-                    if 0 in F2:
-                        continue
-                    for q2, rest in self._search(F2, m2, sig, left & ~(1 << i)).items():
-                        out.setdefault(q2, (i,) + rest)
-        self._search_memo[key] = out
+                    F2, m2 = self._after_action(F, m, sig[i])
+                    if 0 not in F2:
+                        rec(F2, m2, left & ~(1 << i), prefix + (i,))
+
+        rec(frozenset([1 << q]), mask, (1 << n) - 1, ())
         return out
 
     def _successors_key(self, q: int, mask: int, sig: tuple) -> dict[int, tuple[int, ...]]:
@@ -234,7 +245,7 @@ class ExecutedWords:
                 S = self.delta(1 << q, mask)
                 r = {d: () for d in range(self.Q) if S >> d & 1}
             else:
-                r = self._search(frozenset([1 << q]), mask, sig, (1 << len(sig)) - 1)
+                r = self._search(q, mask, sig)
             rows[q] = r
         return r
 
@@ -250,6 +261,16 @@ class ExecutedWords:
         """``M[q, q']``: is (s, q) → (t, q') a product edge (s → t assumed a TS transition)?"""
         mask, sig, _ = self.key(s, t)
         return self.matrix_for(mask, sig)
+
+    def rows(self, s: State, t: State, qs) -> np.ndarray:
+        """``M[qs]`` of :meth:`matrix`, computing only the rows asked for."""
+        mask, sig, _ = self.key(s, t)
+        if not sig:
+            return self.matrix_for(mask, sig)[qs]
+        out = np.zeros((len(qs), self.Q), dtype=bool)
+        for r, q in enumerate(qs):
+            out[r, list(self._successors_key(int(q), mask, sig))] = True
+        return out
 
     def matrix_for(self, mask: int, sig: tuple) -> np.ndarray:
         key = (mask, sig)

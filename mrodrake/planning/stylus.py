@@ -78,8 +78,9 @@ class _Transitions:
         the robot to stay, the object involved to stay, and never switches objects; a robot that keeps
         grasping an object moves iff the object moves.  These imply that a moving object keeps its team,
         so per object only Λ with s's team remains (required powers are > 0, so the team is non-empty).
-        Last, the step must fit while executed one action at a time (``TransitionSystem.steps_fit``,
-        symmetric too).
+        Last, every region change must be travelled (``TransitionSystem.connections`` for the robot's or the
+        team's radius) and the step must fit while executed one action at a time
+        (``TransitionSystem.steps_fit``); both are symmetric too.
         """
         N, M = self.N, self.M
         n = len(X)
@@ -109,9 +110,20 @@ class _Transitions:
         weak = power < self.required
         if weak.any():
             ok &= ~moved[:, weak].any(axis=1)
+        ts = self.ts
+        for i in np.flatnonzero(~has):  # free robots that navigate: a passage wide enough
+            C = ts.connections(ts.robot_radius[i])
+            rows = np.flatnonzero(ok & moves[:, i])
+            ok[rows] &= C[XR[rows, i], sR[i]]
+        for j in np.flatnonzero(moved.any(axis=0)):  # objects carried by s's team
+            team = tuple(int(i) for i in np.flatnonzero(sG == j))
+            if team:
+                C = ts.connections(ts.covering_radius(int(j), team))
+                rows = np.flatnonzero(ok & moved[:, j])
+                ok[rows] &= C[XO[rows, j], sO[j]]
         rows = np.flatnonzero(ok)
         if len(rows):
-            ok[rows] = self.ts.steps_fit(X[rows], s)
+            ok[rows] = ts.steps_fit(X[rows], s)
         return ok
 
     def cost(self, A: np.ndarray, B: np.ndarray) -> np.ndarray:
@@ -224,7 +236,7 @@ class _Tree:
         s = self.states[tid]
         if self.p.ts.check_transition(s, s_a) is not None:
             return False
-        return bool(self.p.words.matrix(s, s_a)[self.n_q[v], q_a])
+        return bool(self.p.words.rows(s, s_a, [self.n_q[v]])[0, q_a])
 
     def _reparent(self, v: int, u: int, w: float) -> None:
         old = self.parent[v]
@@ -265,7 +277,7 @@ class _Tree:
             for k in vis:
                 rows = np.flatnonzero(pi == k)
                 if len(rows):
-                    T[rows] = p.words.matrix(self.states[int(pred[k])], s)[pq[rows]]
+                    T[rows] = p.words.rows(self.states[int(pred[k])], s, pq[rows])
         tot = np.where(T, base[:, None], INF)
         best = tot.argmin(axis=0)
         best_cost = tot[best, np.arange(self.Q)]
@@ -312,7 +324,7 @@ class _Tree:
             for k in np.flatnonzero(better):
                 self._try_reparent(int(ys[k]), v, float(chi[k]))
         for k in np.flatnonzero(vis):
-            row = p.words.matrix(s, self.states[int(succ[k])])[self.n_q[v]]
+            row = p.words.rows(s, self.states[int(succ[k])], [self.n_q[v]])[0]
             for q2 in np.flatnonzero(row):
                 y = int(self.node_of[succ[k], q2])
                 if y >= 0:
