@@ -17,10 +17,14 @@ from mrodrake.errors import UserError
 def _cmd_validate(args: argparse.Namespace) -> int:
     from mrodrake.scenario import load_scenario
 
+    from mrodrake.ts import TransitionSystem
+
     for path in args.scenarios:
         s = load_scenario(path)
         print(f"{path}: ok ({s.name}: {len(s.robots)} robots, {len(s.objects)} objects, "
               f"{len(s.regions)} regions, {len(s.workspace.obstacles)} obstacles)")
+        for line in TransitionSystem(s).unreachable():
+            print(f"{path}: {line}")
     return 0
 
 

@@ -181,6 +181,44 @@ class TransitionSystem:
                         f"{self.region_names[a.dst]}: no passage wide enough")
         return None
 
+    def reach(self, radius: float, k: int) -> list[int]:
+        """Regions an entity of ``radius`` can ever get to from region k (travelling region to region)."""
+        C = self.connections(radius)
+        seen, todo = {k}, [k]
+        while todo:
+            u = todo.pop()
+            for v in np.flatnonzero(C[u]):
+                if int(v) not in seen:
+                    seen.add(int(v))
+                    todo.append(int(v))
+        return sorted(seen)
+
+    def unreachable(self) -> list[str]:
+        """One line per entity that can never reach some region from where it starts: robots by their
+        radius, objects by the smallest covering radius of a team powerful enough to carry them (teams of
+        up to 12 robots are enumerated, of up to 4 beyond 12 robots)."""
+        out = []
+        names = self.region_names
+        for i in range(self.N):
+            k = self.initial[i]
+            miss = [names[m] for m in range(self.K) if m not in self.reach(self.robot_radius[i], k)]
+            if miss:
+                out.append(f"robot {self.robot_names[i]} (radius {self.robot_radius[i]:.2f} m) can never reach "
+                           f"{', '.join(miss)} from {names[k]}: no passage wide enough")
+        for j in range(self.M):
+            k = self.initial[self.N + j]
+            largest = self.N if self.N <= 12 else 4
+            teams = [t for n in range(1, largest + 1) for t in itertools.combinations(range(self.N), n)
+                     if self.team_power_ok(t, j)]
+            if not teams:
+                continue
+            r = min(self.covering_radius(j, t) for t in teams)
+            miss = [names[m] for m in range(self.K) if m not in self.reach(r, k)]
+            if miss:
+                out.append(f"object {self.object_names[j]} can never be carried to {', '.join(miss)} from "
+                           f"{names[k]}: no passage wide enough for its smallest team (covering radius {r:.2f} m)")
+        return out
+
     # ------------------------------------------------------------------ validity
     def region_fits(self, k: int, radii: Sequence[float]) -> bool:
         """P_{s,0} for region k with the layout spacing (cached on the sorted radii)."""

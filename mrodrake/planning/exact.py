@@ -113,6 +113,12 @@ class ExactResult:
     stats: dict = field(default_factory=dict)
 
 
+def blocked_note(ts: TransitionSystem) -> str:
+    """``"; blocked: ..."`` naming the travels no passage allows (:meth:`TransitionSystem.unreachable`), or ""."""
+    lines = ts.unreachable()
+    return "; blocked: " + "; ".join(lines) if lines else ""
+
+
 def restrict_nba(nba: NBA, keep) -> NBA:
     """The NBA with every edge into or out of a state outside ``keep`` removed (numbering kept)."""
     keep = set(keep)
@@ -173,7 +179,7 @@ def solve_exact(ts: TransitionSystem, nba: NBA, relevant: int,
         stuck = immovable_objects(ts)
         if stuck:
             unsat += "; immovable objects: " + ", ".join(ts.object_names[j] for j in sorted(stuck))
-        raise UserError(unsat)
+        raise UserError(unsat + blocked_note(ts))
     if progress:
         progress(f"cycles through {len(acc)} accepting product states")
     gt = g.T.tocsr()
@@ -207,7 +213,7 @@ def solve_exact(ts: TransitionSystem, nba: NBA, relevant: int,
             best, best_a = float(d0[a] + c), a
             best_cycle = _path(pred, a, p) if p != a else [a]
     if best_a < 0:
-        raise UserError(unsat)
+        raise UserError(unsat + blocked_note(ts))
     prefix_ids = _path(pred0, ep.initial, best_a)[:-1]
     suffix_ids = best_cycle
     node = ep.node

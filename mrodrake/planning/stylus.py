@@ -48,6 +48,7 @@ from typing import Callable
 import numpy as np
 
 from mrodrake.errors import UserError
+from mrodrake.planning.exact import blocked_note
 from mrodrake.logic.nba import NBA
 from mrodrake.planning.product import (CubeGoal, accepting_on_cycle, cube_goal, cube_infeasibility,
                                        cycle_distances, hop_distances, hop_distances_from, prune_nba,
@@ -665,7 +666,7 @@ class Stylus:
         if best[1] < 0:
             raise UserError(f"no plan found within {it} iterations and {elapsed:.1f} s (STyLuS* is "
                             "probabilistically complete: raise --iterations or --time-limit, or use --planner "
-                            "exact to decide satisfiability)")
+                            "exact to decide satisfiability)" + blocked_note(ts))
         _, a, v = best
         prefix_nodes = pre.path(a)[:-1]
         tree = suffix[a]
