@@ -1,0 +1,800 @@
+"""Plan-wide placement: every goal, grasp and back-off point of the executed run, fixed before simulating.
+
+The paper leaves the continuous goals of a transition to P_s (Sec. III-A): "a goal point in the target
+region, given the entities there".  Chosen one arrival at a time during execution, such goals can leave no
+room for what the plan brings later (a team needs its covering disk free around its object, a later arrival
+its slot).  :func:`place_run` walks the whole executed run (prefix and suffix cycles) once, in the order the
+sequencer will execute it, and fixes for every primitive where its entity ends:
+
+* a release: the back-off spot of the robot (clear of its object's reserved team disk);
+* a grasp: the docking point on the team layout around the object (the layout of the object's next
+  transport team, rotated so that every slot and the team's covering disk are free; robots already docked
+  fix the rotation);
+* a navigation or a transport: the spot of the robot, or of the object with its team's covering radius;
+* *room* moves: when a grasp layout or an arrival finds no room, the parked free robots of that region are
+  placed again together with it, and move inside the region first.
+
+Every spot is a P_s placement (:func:`mrodrake.packing.place`) in the region with the layout spacing to the
+other entities and the rim; ungrasped objects with a later transport occupy their future team's covering
+disk (reserved); an arrival also leaves room for the largest set of entities the plan brings into that
+region while it stays (foresight, dropped in the order of the smallest first when it does not fit); spots
+keep ``radius + CONTROL_MARGIN`` to walls, obstacles and other regions (sampled boundary points are fixed
+disks), so that the point-world free space of a departure or an arrival contains them.  Every local motion
+(back-off, docking, room move) is checked for a straight-leg path inside its region
+(:func:`mrodrake.control.local.local_path`).  A geometry that cannot be realised raises
+:class:`PlacementError` naming the step and the region, before any simulation.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from dataclasses import dataclass
+from enum import Enum
+from typing import Sequence
+
+import numpy as np
+import shapely
+from shapely.geometry import Point
+
+from mrodrake.control.local import local_path
+from mrodrake.errors import UserError
+from mrodrake.execution.steps import StepSpec
+from mrodrake.geometry import CONTROL_MARGIN, grasp_layout, polygon
+from mrodrake.packing import place
+from mrodrake.ts import Grasp, Navigate, Release, Transport, TransitionSystem
+
+#: Spacing (m) of the boundary points that keep spots off walls, obstacles and other regions.
+BOUNDARY_SAMPLE = 0.2
+#: Seeds tried per placement before giving up (each a different P_s start).
+SEEDS = 6
+_ANGLES = 72
+
+
+class OpKind(Enum):
+    """Kinds of the primitives the sequencer executes."""
+
+    ROOM = "room"
+    RELEASE = "release"
+    GRASP = "grasp"
+    NAVIGATE = "navigate"
+    TRANSPORT = "transport"
+
+
+@dataclass(frozen=True)
+class PlacedOp:
+    """One primitive with its planned end point: ``entity`` is the moving robot (room, release, grasp,
+    navigate) or the transported object (entity index N + j); ``goal`` is where it ends (the object's centre
+    for a transport); ``rotation`` is the team layout's angle (grasp, transport); ``action`` the TS action
+    (None for a room move)."""
+
+    kind: OpKind
+    action: object
+    entity: int
+    region: int
+    goal: tuple[float, float]
+    rotation: float = 0.0
+    team: tuple[int, ...] = ()
+
+
+@dataclass(frozen=True)
+class StepPlacement:
+    """The placed primitives of one executed step, in execution order, and the planned positions of every
+    entity at its end."""
+
+    step: StepSpec
+    ops: tuple[PlacedOp, ...]
+    positions: tuple[tuple[float, float], ...]
+
+
+@dataclass(frozen=True)
+class Placement:
+    """Initial positions and the placed steps of a whole executed run."""
+
+    initial: tuple[tuple[float, float], ...]
+    steps: tuple[StepPlacement, ...]
+
+
+class PlacementError(UserError):
+    """The executed run needs room a region does not have (one line naming the step and the region)."""
+
+
+class _Retry(Exception):
+    """A step found no room because of where an earlier arrival put an object; a hint now moves it."""
+
+
+def layout_slots(ts: TransitionSystem, j: int, team: Sequence[int], center, rotation: float) -> np.ndarray:
+    """Grasp points of ``team`` (in team order) around object j at ``center``, the layout rotated."""
+    lay = grasp_layout(ts.object_radius[j], [ts.robot_radius[i] for i in team], ts.grasp_gap)
+    c, s = math.cos(rotation), math.sin(rotation)
+    rot = np.array([[c, -s], [s, c]])
+    return np.asarray(center, dtype=float) + lay.offsets @ rot.T
+
+
+class _World:
+    """Positions, grasps and team rotations while the run is walked."""
+
+    def __init__(self, ts: TransitionSystem, state: tuple, positions: np.ndarray):
+        self.ts = ts
+        N, M = ts.N, ts.M
+        self.pos = np.array(positions, dtype=float).reshape(N + M, 2)
+        self.where = [int(k) for k in state[: N + M]]
+        self.grasp = [int(g) for g in state[N + M:]]
+        self.rotation: dict[int, float] = {}
+        self.placed = [-1] * (N + M)  # executed step whose arrival put each entity where it is (-1: start)
+
+    def team_of(self, j: int) -> tuple[int, ...]:
+        return tuple(i for i in range(self.ts.N) if self.grasp[i] == j)
+
+
+class _Placer:
+    def __init__(self, ts: TransitionSystem, steps: Sequence[StepSpec], seed: int):
+        self.ts, self.steps, self.seed = ts, list(steps), int(seed)
+        sc = ts.scenario
+        self.N, self.M, self.K = ts.N, ts.M, ts.K
+        self.spacing = sc.layout.spacing
+        self.centers = np.array([g.center for g in sc.regions], dtype=float)
+        self.R = np.array([g.radius for g in sc.regions], dtype=float)
+        self.radii = np.array(ts.robot_radius + ts.object_radius, dtype=float)
+        self._samples: dict[int, np.ndarray] = {}
+        self._next: dict[tuple[int, int], tuple[int, ...] | None] = {}
+        self.variant = 0
+        self.rng = np.random.default_rng(self.seed)
+        #: learned (centre, distance) to keep from, per (entity, executed step of its arrival; -1: start)
+        self.hints: dict[tuple[int, int], list[tuple[np.ndarray, float]]] = {}
+
+    def restart(self, variant: int) -> None:
+        """Another attempt at the whole run: variant 0 places every spot as far out as it goes, with the
+        most clearance; the others take rings and points in a random order drawn from (seed, variant)."""
+        self.variant = int(variant)
+        self.rng = np.random.default_rng([self.seed, self.variant])
+        self.hints = {}
+
+    # ------------------------------------------------------------------------------------ geometry
+    def samples(self, k: int) -> np.ndarray:
+        """Boundary points near region k (walls, obstacles, other regions) that spots must keep clear of."""
+        out = self._samples.get(k)
+        if out is None:
+            sc = self.ts.scenario
+            reach = self.R[k] + CONTROL_MARGIN + 2.0 * float(self.radii.max(initial=0.0)) + 2.0
+            near = Point(*self.centers[k]).buffer(reach)
+            lines = [polygon(sc.workspace.boundary).exterior] + [polygon(o.polygon).exterior
+                                                                  for o in sc.workspace.obstacles]
+            lines += [Point(*g.center).buffer(g.radius, quad_segs=32).exterior for m, g in enumerate(sc.regions)
+                      if m != k]
+            pts = []
+            for ln in lines:
+                part = ln.intersection(near)
+                if part.is_empty:
+                    continue
+                for seg in getattr(part, "geoms", [part]):
+                    if seg.geom_type != "LineString":
+                        pts.append(shapely.get_coordinates(seg))
+                        continue
+                    n = max(2, int(math.ceil(seg.length / BOUNDARY_SAMPLE)) + 1)
+                    pts.append(shapely.get_coordinates(shapely.line_interpolate_point(
+                        seg, np.linspace(0.0, 1.0, n), normalized=True)))
+            out = np.vstack(pts) if pts else np.zeros((0, 2))
+            self._samples[k] = out
+        return out
+
+    def next_team(self, j: int, step: int) -> tuple[int, ...] | None:
+        """Team of the first transport of object j at or after executed step ``step`` (0-based)."""
+        key = (j, step)
+        if key not in self._next:
+            team = None
+            for spec in self.steps[step:]:
+                hit = [a for a in spec.actions if isinstance(a, Transport) and a.obj == j]
+                if hit:
+                    team = tuple(hit[0].team)
+                    break
+            self._next[key] = team
+        return self._next[key]
+
+    def first_grasp(self, j: int, step: int) -> float:
+        """Executed step (0-based) at or after ``step`` at which object j's next team starts forming."""
+        for n in range(step, len(self.steps)):
+            if any(isinstance(a, Grasp) and a.obj == j for a in self.steps[n].actions):
+                return n
+        return math.inf
+
+    def occupied_until(self, e: int, step: int) -> float:
+        """Last executed step through which entity e, arriving at ``step``, keeps its disk: up to the next
+        step in which it (a robot) acts again; for a carried object, until the last member of its team has
+        released it or the team carries it on (the covering disk of a partial team is as large)."""
+        N = self.N
+        team = set()
+        if e >= N:
+            arriving = [a for a in self.steps[step].actions if isinstance(a, Transport) and a.obj == e - N]
+            team = set(arriving[0].team) if arriving else set()
+        for n in range(step + 1, len(self.steps)):
+            for a in self.steps[n].actions:
+                if e < N and getattr(a, "robot", None) == e:
+                    return n
+                if e >= N and getattr(a, "obj", None) == e - N:
+                    if isinstance(a, Transport):
+                        return n
+                    if isinstance(a, Release):
+                        team.discard(a.robot)
+                        if not team:
+                            return n
+                    elif isinstance(a, Grasp):
+                        team.add(a.robot)
+        return math.inf
+
+    def units(self, w: _World, k: int, step: int, exclude: set[int],
+              until: float = math.inf) -> tuple[list[np.ndarray], list[float], list[int]]:
+        """(centres, radii, entity) of the bodies in region k: every robot (free or docked at its slot) and
+        every object with its own radius; entities in ``exclude`` left out.  (A moving team is a disk of its
+        covering radius in the controllers' free space; standing teams are their bodies, so the covering
+        disks of two teams may interleave.)  ``until`` is kept for the callers' reservations."""
+        cs, rs, es = [], [], []
+        for e in range(self.N + self.M):
+            if w.where[e] == k and e not in exclude:
+                cs.append(w.pos[e])
+                rs.append(float(self.radii[e]))
+                es.append(e)
+        return cs, rs, es
+
+    def place_in(self, k: int, new: Sequence[float], cs: Sequence[np.ndarray], rs: Sequence[float],
+                 attempt: int = 0) -> np.ndarray | None:
+        """P_s centres (absolute) for disks ``new`` in region k next to the fixed disks and off the
+        boundary samples, or None."""
+        c = self.centers[k]
+        S = self.samples(k)
+        fc = np.vstack([np.array(cs, dtype=float).reshape(-1, 2) - c, S - c]) if len(S) else \
+            np.array(cs, dtype=float).reshape(-1, 2) - c
+        fr = list(rs) + [CONTROL_MARGIN] * len(S)
+        sol = place(self.R[k], fc, fr, [float(r) for r in new], seed=self.seed + 7919 * attempt,
+                    margin=self.spacing)
+        return None if sol is None else c + sol
+
+    def spot(self, k: int, r: float, cs: Sequence[np.ndarray], rs: Sequence[float],
+             keep_clear: Sequence[tuple[np.ndarray, float]] = (), future: Sequence[float] = (),
+             near: np.ndarray | None = None, rim_extra: float = 0.0) -> np.ndarray | None:
+        """One disk of radius r in region k, as far out as it goes (rings from the rim inwards, every
+        0.25 m; the centre stays free for what comes later), clear of the fixed disks, the boundary samples
+        and ``keep_clear`` (centre, distance) by the spacing; on a ring, the most clearance first (or the
+        point nearest to ``near``).  With ``future`` radii, the disk must leave a P_s placement for them
+        (two candidates per ring are tried); ``rim_extra`` keeps that much more room to the rim."""
+        c, R, sp = self.centers[k], float(self.R[k]), self.spacing
+        S = self.samples(k)
+        fc = np.vstack([np.array(cs, dtype=float).reshape(-1, 2), S]) if len(S) else np.array(cs, dtype=float).reshape(-1, 2)
+        fr = np.concatenate([np.asarray(rs, dtype=float), np.full(len(S), CONTROL_MARGIN)])
+        top = R - r - 0.5 * sp - rim_extra - 1e-6
+        if top < 0.0:
+            return None
+        rings = np.concatenate([np.arange(top, 0.0, -0.25), [0.0]])
+        if self.variant:
+            rings = rings[self.rng.permutation(len(rings))]
+        for rho in rings:
+            n = 1 if rho == 0.0 else int(min(180, max(12, math.ceil(2.0 * math.pi * rho / 0.1))))
+            ang = np.arange(n) * (2.0 * math.pi / n)
+            pts = c + rho * np.column_stack([np.cos(ang), np.sin(ang)])
+            clear = np.full(n, np.inf)
+            if len(fc):
+                d = np.linalg.norm(pts[:, None, :] - fc[None, :, :], axis=-1) - fr[None, :] - r
+                clear = d.min(axis=1)
+            ok = clear >= sp
+            for kc, dist in keep_clear:
+                ok &= np.linalg.norm(pts - kc, axis=1) >= dist
+            idx = np.flatnonzero(ok)
+            if len(idx) == 0:
+                continue
+            if near is not None:
+                idx = idx[np.argsort(np.linalg.norm(pts[idx] - near, axis=1), kind="stable")]
+            elif self.variant:
+                idx = idx[self.rng.permutation(len(idx))]
+            else:
+                idx = idx[np.argsort(-clear[idx], kind="stable")]
+            for i in idx[: 2 if future else 1]:
+                p = pts[i]
+                if not future or place(R, np.vstack([fc, p]) - c, list(fr) + [r], list(future), seed=self.seed,
+                                       margin=sp) is not None:
+                    return p
+        return None
+
+    def path_ok(self, w: _World, e: int, k: int, goal, ignore: set[int]) -> bool:
+        """Straight-leg path inside region k for robot e from its position to ``goal`` around every other
+        entity's disk (team members as themselves, objects at their own radius)."""
+        others = [m for m in range(self.N + self.M) if m != e and m not in ignore and w.where[m] == k]
+        centers = w.pos[others].reshape(-1, 2)
+        radii = self.radii[others] + self.radii[e]
+        try:
+            local_path(w.pos[e], np.asarray(goal, dtype=float), centers, radii, self.centers[k],
+                       float(self.R[k] - self.radii[e]))
+        except ValueError:
+            return False
+        return True
+
+    def future_units(self, w: _World, step: int, k: int, stay: int) -> list[float]:
+        """Radii of the largest (by area) set of units the plan brings into region k later while entity
+        ``stay`` remains there (not counting what is there now)."""
+        nm = self.N + self.M
+        present = {e for e in range(nm) if w.where[e] == k}
+        best, best_area = [], 0.0
+        for spec in self.steps[step + 1:]:
+            regions, grasps = spec.dst[:nm], spec.dst[nm:]
+            if regions[stay] != k:
+                break
+            teams: dict[int, list[int]] = {}
+            for i in range(self.N):
+                if grasps[i] >= 0:
+                    teams.setdefault(int(grasps[i]), []).append(i)
+            units = []
+            for e in range(nm):
+                if regions[e] != k or e in present or e == stay or (e < self.N and grasps[e] >= 0):
+                    continue
+                j = e - self.N
+                units.append(self.ts.covering_radius(j, tuple(teams[j])) if j in teams else float(self.radii[e]))
+            area = sum(u * u for u in units)
+            if area > best_area:
+                best, best_area = units, area
+        return sorted(best, reverse=True)
+
+    def where_msg(self, spec: StepSpec, k: int) -> str:
+        return f"step {spec.index} (plan step {spec.plan_step}): region '{self.ts.region_names[k]}'"
+
+    # ------------------------------------------------------------------------------------ room moves
+    def make_room(self, w: _World, spec: StepSpec, step: int, k: int, new: Sequence[float],
+                  keep_out: Sequence[tuple[np.ndarray, float]], protect: set[int]) -> tuple[np.ndarray, list[PlacedOp]] | None:
+        """Place the parked free robots of region k again together with ``new`` disks (and clear of
+        ``keep_out`` disks); returns (centres of the new disks, room ops) with every move's path checked."""
+        free = [i for i in range(self.N) if w.where[i] == k and w.grasp[i] < 0 and i not in protect]
+        if not free:
+            return None
+        cs, rs, _ = self.units(w, k, step, set(free) | protect)
+        cs = list(cs) + [c for c, _ in keep_out]
+        rs = list(rs) + [r for _, r in keep_out]
+        for attempt in range(SEEDS):
+            sol = self.place_in(k, list(new) + [float(self.radii[i]) for i in free], cs, rs, attempt)
+            if sol is None:
+                continue
+            spots = sol[len(new):]
+            trial = _World.__new__(_World)
+            trial.ts, trial.pos, trial.where, trial.grasp = self.ts, w.pos.copy(), list(w.where), list(w.grasp)
+            trial.rotation = dict(w.rotation)
+            ops = []
+            ok = True
+            for i, p in zip(free, spots):
+                if math.hypot(*(p - trial.pos[i])) < 1e-9:
+                    continue
+                if not self.path_ok(trial, i, k, p, set()):
+                    ok = False
+                    break
+                trial.pos[i] = p
+                ops.append(PlacedOp(OpKind.ROOM, None, i, k, (float(p[0]), float(p[1]))))
+            if ok:
+                w.pos[:] = trial.pos
+                return sol[: len(new)], ops
+        return None
+
+    # ------------------------------------------------------------------------------------ primitives
+    def release(self, w: _World, spec: StepSpec, step: int, robots: list[int], j: int) -> list[PlacedOp]:
+        """Back-off spots for the robots releasing object j, one after the other, as near their grasp
+        points as the rings allow, each reachable by a straight-leg path; if a robot is boxed in between
+        its team and the rim, the team first moves inwards inside the region (a room move of the team)."""
+        k = w.where[self.N + j]
+        acts = {a.robot: a for a in spec.actions if isinstance(a, Release)}
+        ops: list[PlacedOp] = []
+        for attempt in range(2):
+            found = self._backoffs(w, step, k, robots)
+            if found is not None:
+                for i, p in found:
+                    w.pos[i] = p
+                    w.grasp[i] = -1
+                return ops + [PlacedOp(OpKind.RELEASE, acts[i], i, k, (float(p[0]), float(p[1]))) for i, p in found]
+            if attempt == 0:
+                move = self._team_inwards(w, step, k, j)
+                if move is None:
+                    break
+                ops.append(move)
+        raise PlacementError(f"{self.where_msg(spec, k)}: no room to back off for "
+                             f"{', '.join(self.ts.robot_names[i] for i in robots)} after releasing "
+                             f"{self.ts.object_names[j]}")
+
+    def _backoffs(self, w: _World, step: int, k: int, robots: list[int]) -> list | None:
+        saved_pos, saved_grasp = w.pos.copy(), list(w.grasp)
+        out = []
+        for i in robots:
+            w.grasp[i] = -1
+            cs, rs, _ = self.units(w, k, step, {i})
+            p = self.spot(k, float(self.radii[i]), cs, rs, near=w.pos[i])
+            if p is None or not self.path_ok(w, i, k, p, set()):
+                sol = next((x for x in (self.place_in(k, [float(self.radii[i])], cs, rs, n) for n in range(SEEDS))
+                            if x is not None and self.path_ok(w, i, k, x[0], set())), None)
+                if sol is None:
+                    w.pos[:], w.grasp[:] = saved_pos, saved_grasp
+                    return None
+                p = sol[0]
+            w.pos[i] = p
+            out.append((i, p))
+        w.pos[:], w.grasp[:] = saved_pos, saved_grasp
+        return out
+
+    def _move_teams(self, w: _World, step: int, k: int, movers: set[int], r: float, cs, keep_clear):
+        """Room for an arrival of radius r by moving one team of region k inside it (a team carries its
+        object to a spot as far out as it goes); returns (arrival spot, [room op]) or None."""
+        for j in range(self.M):
+            e = self.N + j
+            team = w.team_of(j)
+            if w.where[e] != k or not team or e in movers:
+                continue
+            cover = self.ts.covering_radius(j, team)
+            others_c, others_r, _ = self.units(w, k, step, movers | {e, *team}, self.occupied_until(e, step))
+            new = self.spot(k, cover, others_c, others_r)
+            if new is None:
+                continue
+            arrival = self.spot(k, r, list(others_c) + [new], list(others_r) + [cover],
+                                [(c if not np.allclose(c, w.pos[e]) else new, d) for c, d in keep_clear])
+            if arrival is None:
+                continue
+            try:
+                local_path(w.pos[e], new, np.array(others_c, dtype=float).reshape(-1, 2),
+                           np.asarray(others_r, dtype=float) + cover, self.centers[k], float(self.R[k] - cover))
+            except ValueError:
+                continue
+            w.pos[[e, *team]] += new - w.pos[e]
+            return arrival, [PlacedOp(OpKind.ROOM, None, e, k, (float(new[0]), float(new[1])),
+                                      w.rotation.get(j, 0.0), team)]
+        return None
+
+    def _team_inwards(self, w: _World, step: int, k: int, j: int) -> PlacedOp | None:
+        """Move the team of object j inside region k to the innermost free spot (its members then have
+        room around it); None if there is none or no straight-leg path for the team."""
+        e, team = self.N + j, w.team_of(j)
+        cover = self.ts.covering_radius(j, team)
+        cs, rs, es = self.units(w, k, step, {e, *team})
+        best = None
+        for rho in np.arange(0.0, self.R[k] - cover, 0.25):
+            n = 1 if rho == 0.0 else int(min(180, max(12, math.ceil(2.0 * math.pi * rho / 0.1))))
+            ang = np.arange(n) * (2.0 * math.pi / n)
+            pts = self.centers[k] + rho * np.column_stack([np.cos(ang), np.sin(ang)])
+            for p in pts[np.argsort(np.linalg.norm(pts - w.pos[e], axis=1), kind="stable")]:
+                if all(math.hypot(*(p - np.asarray(c))) >= cover + r + self.spacing for c, r in zip(cs, rs)):
+                    best = p
+                    break
+            if best is not None:
+                break
+        if best is None:
+            return None
+        centers = np.array(cs, dtype=float).reshape(-1, 2)
+        try:
+            local_path(w.pos[e], best, centers, np.asarray(rs, dtype=float) + cover, self.centers[k],
+                       float(self.R[k] - cover))
+        except ValueError:
+            return None
+        shift = best - w.pos[e]
+        w.pos[[e, *team]] += shift
+        return PlacedOp(OpKind.ROOM, None, e, k, (float(best[0]), float(best[1])), w.rotation.get(j, 0.0), team)
+
+    def grasp(self, w: _World, spec: StepSpec, step: int, robots: list[int], j: int) -> list[PlacedOp]:
+        ts, N = self.ts, self.N
+        e = N + j
+        k = w.where[e]
+        team = self.next_team(j, step) or tuple(sorted(robots))
+        if not set(robots) <= set(team):
+            team = tuple(sorted(set(team) | set(robots)))
+        docked = [i for i in w.team_of(j)]
+        lay = grasp_layout(ts.object_radius[j], [ts.robot_radius[i] for i in team], ts.grasp_gap)
+        cover = lay.covering_radius
+        xo = w.pos[e]
+        if docked and j in w.rotation:
+            angles = [w.rotation[j]]
+        else:  # no slot tucked against the rim; those of teammates that dock later face the region's centre
+            angles = list(np.linspace(0.0, 2.0 * math.pi, _ANGLES, endpoint=False))
+            later = [team.index(i) for i in team if i not in robots]
+
+            def outer(rot):
+                d = [math.hypot(*(q - self.centers[k])) for q in layout_slots(ts, j, team, xo, rot)]
+                return (max(d[m] for m in later) if later else 0.0, max(d))
+            angles.sort(key=outer)
+        members = set(team) | set(docked)
+        ops: list[PlacedOp] = []
+        acts = {a.robot: a for a in spec.actions if isinstance(a, Grasp)}
+        for round_ in range(3):
+            for rot in angles:
+                slots = layout_slots(ts, j, team, xo, rot)
+                if not self._slots_free(w, k, step, j, team, robots, slots, cover):
+                    continue
+                trial = w.pos.copy()
+                for order in itertools.permutations(robots):  # docking order: whoever is boxed in goes first
+                    ok = True
+                    for i in order:
+                        slot = slots[team.index(i)]
+                        if not self.path_ok(w, i, k, slot, set()):
+                            ok = False
+                            break
+                        w.pos[i] = slot
+                    if ok:
+                        for i in order:
+                            w.grasp[i] = j
+                        w.rotation[j] = float(rot)
+                        return ops + [PlacedOp(OpKind.GRASP, acts[i], i, k, tuple(map(float, w.pos[i])), float(rot),
+                                               team) for i in order]
+                    w.pos[:] = trial
+            if round_ == 0:  # free robots in the way move inside the region
+                found = self.make_room(w, spec, step, k, [], [(xo, cover)], members)
+                if found is not None:
+                    ops += found[1]
+            elif round_ == 1:  # another team in the way carries its object elsewhere inside the region
+                moved = self._clear_disk_by_team(w, step, k, xo, cover, members | {e})
+                if moved is None:
+                    break
+                ops.append(moved)
+        for x in range(self.M):  # an ungrasped object in the way: the later of the two arrivals avoids the other
+            ex = N + x
+            if x == j or w.where[ex] != k or w.team_of(x):
+                continue
+            nxt = self.next_team(x, step)
+            rx = ts.covering_radius(x, nxt) if nxt and self.first_grasp(x, step) <= self._next_transport(j, step) \
+                else float(self.radii[ex])
+            need = cover + rx + self.spacing
+            if math.hypot(*(w.pos[ex] - xo)) < need:
+                later, other = (ex, e) if w.placed[ex] >= w.placed[e] else (e, ex)
+                self._hint(w, later, w.pos[other], need)
+        raise PlacementError(f"{self.where_msg(spec, k)}: no free grasp layout for "
+                             f"{'+'.join(ts.robot_names[i] for i in team)} around {ts.object_names[j]}")
+
+    def _clear_disk_by_team(self, w: _World, step: int, k: int, center, radius: float, keep: set[int]) -> PlacedOp | None:
+        """Move one team of region k (not in ``keep``) inside it to a spot clear of the disk (center,
+        radius) and of everything else, along a straight-leg path; None if no team can."""
+        for j2 in range(self.M):
+            e2, team2 = self.N + j2, w.team_of(j2)
+            if w.where[e2] != k or not team2 or e2 in keep:
+                continue
+            cover2 = self.ts.covering_radius(j2, team2)
+            if math.hypot(*(w.pos[e2] - center)) >= cover2 + radius + self.spacing:
+                continue
+            cs, rs, _ = self.units(w, k, step, {e2, *team2})
+            new = self.spot(k, cover2, list(cs) + [np.asarray(center)], list(rs) + [radius])
+            if new is None:
+                continue
+            try:
+                local_path(w.pos[e2], new, np.array(cs, dtype=float).reshape(-1, 2),
+                           np.asarray(rs, dtype=float) + cover2, self.centers[k], float(self.R[k] - cover2))
+            except ValueError:
+                continue
+            w.pos[[e2, *team2]] += new - w.pos[e2]
+            return PlacedOp(OpKind.ROOM, None, e2, k, (float(new[0]), float(new[1])), w.rotation.get(j2, 0.0), team2)
+        return None
+
+    def _slots_free(self, w: _World, k: int, step: int, j: int, team, docking, slots: np.ndarray,
+                    cover: float) -> bool:
+        """Every slot inside the region; the team's covering disk clear of every entity outside the team
+        (objects with their team disks, or the team disks reserved for teams that form before this one
+        leaves); the slots of the robots docking now clear of every other robot."""
+        sp, N = self.spacing, self.N
+        xo = w.pos[N + j]
+        for m, i in enumerate(team):
+            if math.hypot(*(slots[m] - self.centers[k])) + float(self.radii[i]) + 0.5 * sp > self.R[k]:
+                return False
+        depart = self._next_transport(j, step)
+        cs, rs, es = self.units(w, k, step, set(team) | {N + j})
+        for c, r, b in zip(cs, rs, es):
+            if self._leaves_by(b, step, depart):
+                continue  # gone before the team sets off
+            if math.hypot(*(np.asarray(c) - xo)) < cover + r + sp:
+                return False
+        for i in docking:
+            q = slots[team.index(i)]
+            for o in range(N):
+                if o != i and o not in docking and w.where[o] == k:
+                    if math.hypot(*(w.pos[o] - q)) < float(self.radii[o] + self.radii[i]) + sp:
+                        return False
+        return True
+
+    def arrive(self, w: _World, spec: StepSpec, step: int, a) -> list[PlacedOp]:
+        ts, N = self.ts, self.N
+        if isinstance(a, Navigate):
+            e, movers, r, kind = a.robot, {a.robot}, float(self.radii[a.robot]), OpKind.NAVIGATE
+        else:
+            e, movers = N + a.obj, {N + a.obj, *a.team}
+            r, kind = ts.covering_radius(a.obj, a.team), OpKind.TRANSPORT
+        k = a.dst
+        for m in movers:
+            w.where[m] = -1  # departed
+        cs, rs, es = self.units(w, k, step, movers, self.occupied_until(e, step))
+        keep_clear = self._separations(w, k, step, a) if isinstance(a, Transport) else []
+        keep_clear += self.hints.get((e, step), [])
+        future = self.future_units(w, step, k, e)
+        spot, ops = None, []
+        for fut in ((future, future[:1], ()) if future else ((),)):
+            spot = self.spot(k, r, cs, rs, keep_clear, fut)
+            if spot is not None:
+                break
+        if spot is None:
+            found = self._move_teams(w, step, k, movers, r, cs, keep_clear)
+            if found is not None:
+                spot, ops = found
+        if spot is None:
+            found = self.make_room(w, spec, step, k, [r], [], movers)
+            if found is None or not self._object_clear(a, found[0][0], keep_clear):
+                self._learn_from_arrival(w, k, r, cs, rs, es, keep_clear)
+                raise PlacementError(f"{self.where_msg(spec, k)}: no room for "
+                                     f"{ts.format_action(a, 'names')} (radius {r:.2f} m) next to "
+                                     f"{', '.join((ts.robot_names + ts.object_names)[x] for x in self.units(w, k, step, movers)[2]) or 'nothing'}")
+            spot, ops = found[0][0], found[1]
+        rot = 0.0
+        if isinstance(a, Transport):  # the members move rigidly with the object
+            rot = w.rotation.get(a.obj, 0.0)
+            offsets = w.pos[list(a.team)] - w.pos[e]
+            w.pos[list(a.team)] = spot + offsets
+        w.pos[e] = spot
+        w.placed[e] = step
+        for m in movers:
+            w.where[m] = k
+        return ops + [PlacedOp(kind, a, e, k, (float(spot[0]), float(spot[1])), rot, tuple(getattr(a, "team", ())))]
+
+    def _hint(self, w: _World, x: int, center, dist: float) -> None:
+        key = (x, w.placed[x])
+        known = self.hints.setdefault(key, [])
+        if any(np.allclose(c, center) and d >= dist for c, d in known) or len(known) >= 8:
+            return
+        known.append((np.array(center, dtype=float), float(dist)))
+        raise _Retry()
+
+    def _learn_from_arrival(self, w: _World, k: int, r: float, cs, rs, es, keep_clear) -> None:
+        """An arrival found no room: if it would fit without one ungrasped object that an earlier arrival
+        put there, that arrival must keep the object off the spot found (a hint), and the run is placed
+        again (raises _Retry); otherwise nothing is learned."""
+        for x in es:
+            if x < self.N or w.team_of(x - self.N):
+                continue
+            keep = [(c, d) for c, d in keep_clear if not np.allclose(c, w.pos[x])]
+            rest = [(c, q) for c, q, y in zip(cs, rs, es) if y != x]
+            p = self.spot(k, r, [c for c, _ in rest], [q for _, q in rest], keep)
+            if p is None:
+                continue
+            need = max([d for c, d in keep_clear if np.allclose(c, w.pos[x])] +
+                       [r + float(rs[es.index(x)]) + self.spacing])
+            self._hint(w, x, p, need)
+
+    def _leaves_by(self, e: int, step: int, last: float) -> bool:
+        """Does entity e leave its region in a step from ``step`` up to ``last`` (exclusive)?"""
+        n = step
+        while n < min(last, len(self.steps)):
+            for a in self.steps[n].actions:
+                if isinstance(a, Navigate) and a.robot == e:
+                    return True
+                if isinstance(a, Transport) and (a.obj == e - self.N or e in a.team):
+                    return True
+            n += 1
+        return False
+
+    def _next_transport(self, j: int, step: int) -> float:
+        """First executed step after ``step`` that carries object j on (inf: none)."""
+        for n in range(step + 1, len(self.steps)):
+            if any(isinstance(b, Transport) and b.obj == j for b in self.steps[n].actions):
+                return n
+        return math.inf
+
+    def _separations(self, w: _World, k: int, step: int, a: Transport) -> list[tuple[np.ndarray, float]]:
+        """(centre, distance) the arriving object must keep from every other object X in region k, since
+        neither moves between its transports: the covering disk of a team of X (its team now, or its next
+        one, formed while the arriving object is there) must keep out the arriving object's body, and the
+        arriving object's next team must keep out X's body."""
+        sp, N = self.spacing, self.N
+        leave_a = self._next_transport(a.obj, step)
+        ra = float(self.radii[N + a.obj])
+        nxt_a, g_a = self.next_team(a.obj, step + 1), self.first_grasp(a.obj, step + 1)
+        out = []
+        for j in range(self.M):
+            e = N + j
+            if j == a.obj or w.where[e] != k:
+                continue
+            leave_x = self._next_transport(j, step)
+            need = 0.0
+            team = w.team_of(j)
+            if team:
+                need = max(need, self.ts.covering_radius(j, team) + ra + sp)
+            nxt, g = self.next_team(j, step), self.first_grasp(j, step)
+            if nxt and g <= leave_a:
+                need = max(need, self.ts.covering_radius(j, nxt) + ra + sp)
+            if nxt_a and g_a <= leave_x:
+                need = max(need, self.ts.covering_radius(a.obj, nxt_a) + float(self.radii[e]) + sp)
+            if need > 0.0:
+                out.append((w.pos[e], need))
+        return out
+
+    def _object_clear(self, a, spot: np.ndarray, keep_clear: list[tuple[np.ndarray, float]]) -> bool:
+        return all(math.hypot(*(spot - c)) >= d for c, d in keep_clear)
+
+    # ------------------------------------------------------------------------------------ the run
+    def initial(self, state: tuple) -> np.ndarray:
+        """P_s layout of the initial state, every ungrasped object with its future team's disk, leaving
+        room (foresight) for what the plan brings into the region while its objects are still there."""
+        N, M = self.N, self.M
+        pos = np.zeros((N + M, 2))
+        w = _World(self.ts, state, pos)
+        for k in range(self.K):
+            ents = [e for e in range(N + M) if state[e] == k]
+            if not ents:
+                continue
+            radii = []
+            for e in ents:
+                nxt = self.next_team(e - N, 0) if e >= N else None
+                radii.append(self.ts.covering_radius(e - N, nxt) if nxt else float(self.radii[e]))
+            future = max((self.future_units(w, -1, k, e) for e in ents if e >= N), default=[],
+                         key=lambda u: sum(x * x for x in u))
+            if any((e, -1) in self.hints for e in ents):  # learned: one entity after the other, hints kept
+                order = sorted(range(len(ents)), key=lambda n: -radii[n])
+                cs, rs = [], []
+                for n in order:
+                    p = self.spot(k, radii[n], cs, rs, self.hints.get((ents[n], -1), []))
+                    if p is None:
+                        raise PlacementError(f"initial state: region '{self.ts.region_names[k]}': no layout "
+                                             "keeps the room later steps need")
+                    pos[ents[n]] = p
+                    cs.append(p)
+                    rs.append(radii[n])
+                continue
+            sol = None
+            for n in range(len(future), -1, -1):
+                for attempt in range(SEEDS if n == 0 else 2):
+                    sol = self.place_in(k, radii + future[:n], [], [], attempt)
+                    if sol is not None:
+                        sol = sol[: len(radii)]
+                        break
+                if sol is not None:
+                    break
+            if sol is None:
+                raise PlacementError(f"initial state: region '{self.ts.region_names[k]}': the entities "
+                                     f"{', '.join((self.ts.robot_names + self.ts.object_names)[e] for e in ents)} "
+                                     "with the team disks of their objects do not fit")
+            pos[ents] = sol
+        return pos
+
+    def run(self, initial: np.ndarray) -> Placement:
+        w = _World(self.ts, self.steps[0].src if self.steps else self.ts.initial, initial)
+        out = []
+        for step, spec in enumerate(self.steps):
+            ops: list[PlacedOp] = []
+            releases: dict[int, list[int]] = {}
+            grasps: dict[int, list[int]] = {}
+            for a in spec.actions:
+                if isinstance(a, Release):
+                    releases.setdefault(a.obj, []).append(a.robot)
+                elif isinstance(a, Grasp):
+                    grasps.setdefault(a.obj, []).append(a.robot)
+            for j, robots in releases.items():
+                ops += self.release(w, spec, step, robots, j)
+            for j, robots in grasps.items():
+                ops += self.grasp(w, spec, step, robots, j)
+            for a in spec.actions:
+                if isinstance(a, (Navigate, Transport)):
+                    ops += self.arrive(w, spec, step, a)
+            out.append(StepPlacement(spec, tuple(ops), tuple(map(tuple, w.pos.tolist()))))
+        return Placement(tuple(map(tuple, initial.tolist())), tuple(out))
+
+
+#: Whole-run attempts of :func:`place_run` (greedy placement with different orders of candidate spots).
+ATTEMPTS = 4
+#: Re-placements of one attempt after a learned hint (an earlier arrival keeps off a spot a later step needs).
+RETRIES = 40
+
+
+def place_run(ts: TransitionSystem, steps: Sequence[StepSpec], seed: int = 0,
+              initial: np.ndarray | None = None, attempts: int = ATTEMPTS) -> Placement:
+    """Every goal, grasp and back-off point of the executed run ``steps`` (module docstring); ``initial``
+    positions default to a P_s layout of the initial state that reserves the future team disks.  The run is
+    placed greedily in execution order.  When a step finds no room because an earlier arrival (or the
+    initial layout) put an ungrasped object in the way, that arrival learns to keep off the spot the step
+    needs and the run is placed again (up to :data:`RETRIES` times); when nothing can be learned, the whole
+    run starts over with another order of candidate spots (:meth:`_Placer.restart`), up to ``attempts``
+    times.  The first failure is reported."""
+    placer = _Placer(ts, steps, seed)
+    state = steps[0].src if steps else ts.initial
+    first: PlacementError | None = None
+    for variant in range(max(1, attempts)):
+        placer.restart(variant)
+        for _ in range(RETRIES):
+            try:
+                pos = placer.initial(state) if initial is None else np.asarray(initial, dtype=float)
+                return placer.run(pos)
+            except _Retry:
+                continue
+            except PlacementError as exc:
+                first = first or exc
+                break
+    raise first
