@@ -167,7 +167,6 @@ class TransitionSystem:
 
     def blocked(self, s: State, t: State) -> str | None:
         """Why a region change of s → t cannot be travelled (None when every one can)."""
-        N, M = self.N, self.M
         for a in self.actions(s, t):
             if isinstance(a, Navigate):
                 r, who = self.robot_radius[a.robot], f"robot {self.robot_names[a.robot]}"

@@ -34,7 +34,7 @@ def longest_navigation(scenario_path: str | Path = SCENARIO):
     """(scenario, robot, src, dst, placed entities, goal spot name, other entities, free space) of the first
     robot's longest navigation, with the other entities placed as in the benchmark (seed 0)."""
     from mrodrake.control.freespace import entity_free_space
-    from mrodrake.systems.transition import entity_layout
+    from mrodrake.control.tasks import entity_layout
 
     sc = load_scenario(scenario_path)
     robot = sc.robots[0]
@@ -48,7 +48,8 @@ def longest_navigation(scenario_path: str | Path = SCENARIO):
 
 def run_control_benchmark(stream=None, repeats: int = 3, scenario_path: str | Path = SCENARIO) -> dict:
     """Run the benchmark, print a table to ``stream`` (default stdout) and return the numbers."""
-    from mrodrake.systems.transition import MAP_OPTIONS, simulate_transition
+    from mrodrake.control.tasks import MAP_OPTIONS
+    from mrodrake.systems.transition import simulate_transition
 
     stream = stream or sys.stdout
     sc, robot, src, dst, placed, spot, others, free = longest_navigation(scenario_path)

@@ -140,6 +140,9 @@ class _Placer:
         self._next: dict[tuple[int, int], tuple[int, ...] | None] = {}
         self.variant = 0
         self.rng = np.random.default_rng(self.seed)
+        #: the (object, team) pairs with a team plant: only they can carry their object inside a region
+        self.couplings = {(a.obj, tuple(a.team)) for spec in self.steps for a in spec.actions
+                          if isinstance(a, Transport)}
         #: learned (centre, distance) to keep from, per (entity, executed step of its arrival; -1: start)
         self.hints: dict[tuple[int, int], list[tuple[np.ndarray, float]]] = {}
 
@@ -418,7 +421,7 @@ class _Placer:
         for j in range(self.M):
             e = self.N + j
             team = w.team_of(j)
-            if w.where[e] != k or not team or e in movers:
+            if w.where[e] != k or not team or e in movers or (j, team) not in self.couplings:
                 continue
             cover = self.ts.covering_radius(j, team)
             others_c, others_r, _ = self.units(w, k, step, movers | {e, *team}, self.occupied_until(e, step))
@@ -443,6 +446,8 @@ class _Placer:
         """Move the team of object j inside region k to the innermost free spot (its members then have
         room around it); None if there is none or no straight-leg path for the team."""
         e, team = self.N + j, w.team_of(j)
+        if (j, team) not in self.couplings:
+            return None
         cover = self.ts.covering_radius(j, team)
         cs, rs, es = self.units(w, k, step, {e, *team})
         best = None
@@ -541,7 +546,7 @@ class _Placer:
         radius) and of everything else, along a straight-leg path; None if no team can."""
         for j2 in range(self.M):
             e2, team2 = self.N + j2, w.team_of(j2)
-            if w.where[e2] != k or not team2 or e2 in keep:
+            if w.where[e2] != k or not team2 or e2 in keep or (j2, team2) not in self.couplings:
                 continue
             cover2 = self.ts.covering_radius(j2, team2)
             if math.hypot(*(w.pos[e2] - center)) >= cover2 + radius + self.spacing:

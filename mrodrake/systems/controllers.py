@@ -20,7 +20,6 @@ estimate derivatives all read it (one map evaluation per derivative evaluation o
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from typing import Sequence
 
 import numpy as np
@@ -28,22 +27,9 @@ from pydrake.common.value import AbstractValue
 from pydrake.systems.framework import BasicVector, ContinuousStateIndex, EventStatus, LeafSystem, ValueProducer
 
 from mrodrake.control.adaptive import AdaptiveGains, ControlEval, NavigationTask
+from mrodrake.execution.commands import TaskCommand
 
 _ZERO = ControlEval(np.zeros(2), 0.0, 0.0, np.zeros(2), np.zeros(2), np.zeros(2))
-
-
-@dataclass(frozen=True)
-class TaskCommand:
-    """What a supervisor sends a controller: the task in force and the episode it belongs to.  The
-    estimates restart from the task's m̂(0), α̂(0) when the episode changes and carry over when only the task
-    changes within an episode (a primitive switching from the point-world law to the local law near its goal,
-    or to its next leg): the paper adapts through the whole transition."""
-
-    task: NavigationTask
-    episode: int
-
-    def __deepcopy__(self, memo):
-        return self
 
 
 class _EpisodeBox:

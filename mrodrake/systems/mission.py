@@ -1,24 +1,12 @@
 """Mission execution in ONE Drake diagram (paper Section III-A, sequential execution of the plan).
 
-Diagram (built once by :class:`Mission`):
-
-* one :class:`SyncedRobotPlant` per robot and one :class:`SyncedObjectPlant` per object, one
-  :class:`SyncedCoupledPlant` + one ``TransportController`` per (object, team) pair of the plan's Transport
-  actions, one ``NavigationController`` per robot (navigation, docking and backing off are navigations);
-* one ``PortSwitch`` per robot and per object selecting its authoritative [x, ẋ] (own plant or the coupled
-  plant's output); everything downstream (controllers, supervisor, logger) reads the switch outputs;
-* the :class:`~mrodrake.systems.supervisor.Supervisor` drives every controller's ``task``, every plant's
-  ``sync`` and every switch's selector; a :class:`MissionLogger` samples all entities and active controllers
-  at a fixed rate.
-
-The plants are the ones of :mod:`mrodrake.systems.plants` with an abstract ``sync`` input (see
-:class:`~mrodrake.systems.supervisor.SyncCommand`): a per-step unrestricted update copies the commanded
-[x, ẋ] into the plant's own state when the command's version changes (an event may change only its own
-system's state), and a parked plant has zero dynamics.  Engaging a coupling syncs the coupled plant to the
-object's state with the ACTUAL member offsets (robots stay where they docked: no jump); releasing syncs the
-object and member plants to the coupled plant's outputs.
-
-The Simulator advances the whole mission with one ``AdvanceTo``; the supervisor ends it.
+:class:`Mission` places the whole executed run (:mod:`mrodrake.execution.placement`), builds the diagram with
+the ``AddX`` helpers of :mod:`mrodrake.systems.builders` (plants, controllers, team plants, state switches,
+the supervisor that carries the sequencer of :mod:`mrodrake.execution.sequencer`) and a :class:`MissionLogger`,
+and advances the whole mission with one ``AdvanceTo``; the supervisor ends it.  Engaging a team syncs the
+team plant to the object's state with the ACTUAL member offsets (robots stay where they docked: no jump);
+releasing syncs the object and member plants to the team plant's outputs.  :class:`MissionLog` holds what was
+recorded and writes the outputs (CSV logs, ``replay.html``, figures).
 """
 
 from __future__ import annotations
@@ -33,101 +21,18 @@ import pandas as pd
 from pydrake.common.value import AbstractValue
 from pydrake.systems.analysis import ApplySimulatorConfig, Simulator, SimulatorConfig
 from pydrake.systems.framework import DiagramBuilder, EventStatus, LeafSystem
-from pydrake.systems.primitives import PortSwitch
 
 from mrodrake.control.adaptive import AdaptiveGains
 from mrodrake.errors import UserError
+from mrodrake.execution.placement import place_run
+from mrodrake.execution.sequencer import ExecState, Sequencer, Status, couplings_of
+from mrodrake.execution.steps import expand_steps
+from mrodrake.planning.plan import Plan, PlanVerificationError, plan_scenario, task_nba, task_words
 from mrodrake.scenario import Scenario, load_scenario
-from mrodrake.systems.controllers import NavigationController, TransportController
-from mrodrake.systems.plants import CoupledPlant, ObjectPlant, RobotPlant
-from mrodrake.systems.supervisor import Supervisor, SyncCommand
-from mrodrake.systems.transition import build_task, entity_layout
-from mrodrake.ts import Transport, TransitionSystem
-
-
-# ------------------------------------------------------------------------------------------ plant wrappers
-def _declare_sync(plant) -> None:
-    plant.sync_port = plant.DeclareAbstractInputPort("sync", AbstractValue.Make(SyncCommand()))
-    plant._version_index = plant.DeclareAbstractState(AbstractValue.Make(-1))
-    plant.DeclarePerStepUnrestrictedUpdateEvent(plant._Sync)
-
-
-def _apply_sync(plant, context, state) -> None:
-    cmd = plant.sync_port.Eval(context)
-    if cmd.version == context.get_abstract_state(int(plant._version_index)).get_value():
-        return
-    state.get_mutable_abstract_state(int(plant._version_index)).set_value(int(cmd.version))
-    state.get_mutable_continuous_state().SetFromVector(np.concatenate([cmd.x, cmd.v]))
-
-
-class _SyncedBody:
-    """Mixin for a one-body plant: an abstract ``sync`` input (state reset by version, parking brake)."""
-
-    def __init__(self, *args, **kwargs):
-        super().__init__(*args, **kwargs)
-        _declare_sync(self)
-
-    def _Sync(self, context, state):
-        _apply_sync(self, context, state)
-
-    def DoCalcTimeDerivatives(self, context, derivatives):
-        if self.sync_port.Eval(context).frozen:
-            derivatives.get_mutable_vector().SetZero()
-            return
-        super().DoCalcTimeDerivatives(context, derivatives)
-
-
-class SyncedRobotPlant(_SyncedBody, RobotPlant):
-    """RobotPlant with an abstract ``sync`` input (state reset by version, parking brake)."""
-
-
-class SyncedObjectPlant(_SyncedBody, ObjectPlant):
-    """ObjectPlant with an abstract ``sync`` input (state reset by version, parking brake)."""
-
-
-class SyncedCoupledPlant(CoupledPlant):
-    """CoupledPlant whose grasp offsets come from the ``sync`` command (the members' actual offsets at
-    engagement); outputs ``member_<name>`` = [x^o + offset_i, ẋ^o] (eq. coupled dynamics)."""
-
-    def __init__(self, object_mass, object_friction, members, member_masses, member_frictions, name="team"):
-        super().__init__(object_mass, object_friction, members, member_masses, member_frictions,
-                         np.zeros((len(members), 2)), name=name)
-        _declare_sync(self)
-        pre = {self.xc_ticket(), self.sync_port.ticket()}
-        self.member_ports = [self.DeclareVectorOutputPort(f"member_{n}", 4, self._member_out(k),
-                                                          prerequisites_of_calc=pre)
-                             for k, n in enumerate(self.members)]
-
-    def _offsets(self, context) -> np.ndarray:
-        off = self.sync_port.Eval(context).offsets
-        return np.asarray(off, dtype=float).reshape(len(self.members), 2) if len(off) else np.zeros((len(self.members), 2))
-
-    def _member_out(self, k: int):
-        def calc(context, output):
-            s = context.get_continuous_state_vector().CopyToVector()
-            s[:2] += self._offsets(context)[k]
-            output.SetFromVector(s)
-        return calc
-
-    def _Sync(self, context, state):
-        _apply_sync(self, context, state)
-
-    def DoCalcTimeDerivatives(self, context, derivatives):
-        cmd = self.sync_port.Eval(context)
-        if cmd.frozen:
-            derivatives.get_mutable_vector().SetZero()
-            return
-        s = context.get_continuous_state_vector().value()
-        x, v = s[:2], s[2:]
-        offsets = self._offsets(context)
-        m_total, f_total = self._body_friction(context, 0, x, v)
-        u = np.zeros(2)
-        for k, port in enumerate(self.u_ports):
-            m_k, f_k = self._body_friction(context, k + 1, x + offsets[k], v)
-            m_total += m_k
-            f_total = f_total + f_k
-            u += port.Eval(context)
-        derivatives.get_mutable_vector().SetFromVector(np.concatenate([v, (u - f_total) / m_total]))
+from mrodrake.systems.builders import (AddEntityPlants, AddNavigationControllers, AddStateSwitches, AddSupervisor,
+                                       AddTeams)
+from mrodrake.systems.transition import TransitionResult
+from mrodrake.ts import TransitionSystem
 
 
 # ------------------------------------------------------------------------------------------ logger
@@ -218,8 +123,6 @@ class MissionLog:
     # ------------------------------------------------------------------ figures
     def transition_result(self, record):
         """A :class:`~mrodrake.systems.transition.TransitionResult` of one executed motion (for viz.figures)."""
-        from mrodrake.systems.transition import TransitionResult
-
         tr = self.trajectory
         seg = tr[(tr["entity"] == record.entity) & (tr["t"] >= record.t_start) & (tr["t"] <= record.t_end)]
         sig = self.signals[(self.signals["controller"] == record.controller)
@@ -333,6 +236,13 @@ def ensure_output_dir(path, option: str = "--out") -> Path:
 class Mission:
     """One Drake diagram executing ``plan`` (prefix + ``suffix_cycles`` suffix cycles) on ``scenario``.
 
+    Before anything is built, the whole executed run is placed (:func:`~mrodrake.execution.placement.place_run`;
+    a geometry that cannot be realised raises a one-line :class:`~mrodrake.execution.placement.PlacementError`
+    naming the step and region).  The diagram (:mod:`mrodrake.systems.builders`): a plant per robot and object,
+    a navigation controller per robot, a team plant and transport controller per (object, team) of the plan's
+    transports, a state switch per entity, the :class:`~mrodrake.systems.supervisor.Supervisor` (the
+    sequencer's ports) and a :class:`MissionLogger`.
+
     Integration: Drake's error-controlled RK3 with ``accuracy`` 1e-3.  Drake weights every state component
     by 1, so this bounds the local error per step to about 1 mm (m/s) on positions (velocities): two orders
     below the 0.1 m layout spacing and the 0.5 m margin to walls that the clearance tests check, while the
@@ -342,8 +252,6 @@ class Mission:
     def __init__(self, scenario: Scenario, plan, suffix_cycles: int = 1, seed: int = 0, *, log_period: float = 0.5,
                  check_period: float = 0.5, accuracy: float = 1e-3, max_step: float = 2.0,
                  integrator: str = "runge_kutta3", rest_speed: float | None = None):
-        from mrodrake.planning.plan import task_words
-
         if suffix_cycles < 0:
             raise UserError(f"--suffix-cycles: must be >= 0, got {suffix_cycles}")
         if plan.scenario != scenario.name:
@@ -351,91 +259,32 @@ class Mission:
         self.scenario, self.plan, self.seed = scenario, plan, int(seed)
         self.ts = plan.ts if plan.ts is not None else TransitionSystem(scenario)
         self.formula, self.nba, self.words = task_words(scenario, self.ts)
-        couplings = []
-        for acts in plan.actions:
-            for a in acts:
-                if isinstance(a, Transport) and (a.obj, tuple(a.team)) not in couplings:
-                    couplings.append((a.obj, tuple(a.team)))
-        layout = entity_layout(scenario, seed=self.seed)
-        init = {n: d.center for n, d in layout.items()}
+        t0 = time.perf_counter()
+        self.placement = place_run(self.ts, expand_steps(plan, suffix_cycles), seed=self.seed)
+        self.placement_seconds = time.perf_counter() - t0
+        kw = {} if rest_speed is None else {"rest_speed": rest_speed}
+        self.sequencer = Sequencer(scenario, self.ts, self.words, self.placement, couplings_of(plan), **kw)
 
         b = DiagramBuilder()
-        robots, objects = scenario.robot_names, scenario.object_names
-        self.robot_plants = {r.name: b.AddSystem(SyncedRobotPlant(r.mass, r.friction, name=r.name))
-                             for r in scenario.robots}
-        self.object_plants = {o.name: b.AddSystem(SyncedObjectPlant(o.mass, o.friction, name=o.name))
-                              for o in scenario.objects}
         gains = AdaptiveGains.from_scenario(scenario.control)
-        self.nav_ctrls = {r: b.AddSystem(NavigationController(None, gains, name=f"nav_{r}")) for r in robots}
-        switches = {e: b.AddSystem(PortSwitch(4)) for e in robots + objects}
-        for e, sw in switches.items():
-            sw.set_name(f"switch_{e}")
-        own = {}
-        for e in robots:
-            own[e] = switches[e].DeclareInputPort(f"{e}_own")
-            b.Connect(self.robot_plants[e].state_port, own[e])
-        for e in objects:
-            own[e] = switches[e].DeclareInputPort(f"{e}_own")
-            b.Connect(self.object_plants[e].state_port, own[e])
-        route_ports = {}
-        self.coupled, self.team_ctrls = {}, {}
-        names = []
-        for j, team in couplings:
-            o = scenario.objects[j]
-            rs = [scenario.robots[i] for i in team]
-            name = f"{o.name}_{'+'.join(r.name for r in rs)}"
-            names.append(name)
-            cp = b.AddSystem(SyncedCoupledPlant(o.mass, o.friction, [r.name for r in rs], [r.mass for r in rs],
-                                                [r.friction for r in rs], name=name))
-            tc = b.AddSystem(TransportController([r.name for r in rs], None, gains, name=name + "_ctrl"))
-            self.coupled[name], self.team_ctrls[name] = cp, tc
-            for u_out, u_in in zip(tc.member_u_ports, cp.u_ports):
-                b.Connect(u_out, u_in)
-            b.Connect(cp.state_port, tc.state_port)
-            port = switches[o.name].DeclareInputPort(f"{name}")
-            b.Connect(cp.state_port, port)
-            route_ports[(o.name, name)] = int(port.get_index())
-            for k, r in enumerate(rs):
-                port = switches[r.name].DeclareInputPort(f"{name}")
-                b.Connect(cp.member_ports[k], port)
-                route_ports[(r.name, name)] = int(port.get_index())
-        for e in robots:
-            b.Connect(switches[e].get_output_port(), self.nav_ctrls[e].state_port)
-            b.Connect(self.nav_ctrls[e].u_port, self.robot_plants[e].u_port)
-
-        def make_task(scn, free, n_members, label=""):
-            return build_task(scn, free, n_members, label=label)
-
-        kw = {} if rest_speed is None else {"rest_speed": rest_speed}
-        self.supervisor = b.AddSystem(Supervisor(
-            scenario, self.ts, self.words, plan, suffix_cycles=suffix_cycles, seed=self.seed, couplings=couplings,
-            route_ports=route_ports, initial_positions=init, period=check_period, build_task=make_task, **kw))
-        sup = self.supervisor
-        for k, e in enumerate(robots + objects):
-            b.Connect(switches[e].get_output_port(), sup.state_ports[k])
-            b.Connect(sup.select_ports[e], switches[e].get_port_selector_input_port())
-        for e, p in list(self.robot_plants.items()) + list(self.object_plants.items()) + list(self.coupled.items()):
-            b.Connect(sup.sync_ports[e], p.sync_port)
-        for r in robots:
-            b.Connect(sup.task_ports[f"nav_{r}"], self.nav_ctrls[r].task_port)
-        for name, tc in self.team_ctrls.items():
-            b.Connect(sup.task_ports[name + "_ctrl"], tc.task_port)
-        ctrl_info = {f"nav_{r}": (r, ()) for r in robots}
-        for name, cp in self.coupled.items():
-            ctrl_info[name + "_ctrl"] = (cp_object(name, objects), tuple(cp.members))
-        self.logger = b.AddSystem(MissionLogger(robots + objects, ctrl_info, log_period))
-        for k, e in enumerate(robots + objects):
-            b.Connect(switches[e].get_output_port(), self.logger.state_ports[k])
-        for r in robots:
-            c = f"nav_{r}"
-            b.Connect(self.nav_ctrls[r].u_port, self.logger.u_ports[c])
-            b.Connect(self.nav_ctrls[r].estimates_port, self.logger.est_ports[c])
-            b.Connect(sup.task_ports[c], self.logger.task_ports[c])
-        for name, tc in self.team_ctrls.items():
-            c = name + "_ctrl"
-            b.Connect(tc.u_port, self.logger.u_ports[c])
-            b.Connect(tc.estimates_port, self.logger.est_ports[c])
-            b.Connect(sup.task_ports[c], self.logger.task_ports[c])
+        self.plants = AddEntityPlants(b, scenario)
+        self.nav_ctrls = AddNavigationControllers(b, scenario, self.plants, gains)
+        self.teams = AddTeams(b, scenario, self.sequencer, gains)
+        self.switches = AddStateSwitches(b, scenario, self.plants, self.teams, self.nav_ctrls)
+        self.supervisor = AddSupervisor(b, self.sequencer, self.plants, self.teams, self.nav_ctrls, self.switches,
+                                        check_period)
+        entities = scenario.robot_names + scenario.object_names
+        ctrl_info = {f"nav_{r}": (r, ()) for r in scenario.robot_names}
+        ctrl_info.update({t.name + "_ctrl": (scenario.object_names[t.obj], tuple(t.plant.members)) for t in self.teams})
+        self.logger = b.AddSystem(MissionLogger(entities, ctrl_info, log_period))
+        for k, e in enumerate(entities):
+            b.Connect(self.switches.switches[e].get_output_port(), self.logger.state_ports[k])
+        controllers = {f"nav_{r}": c for r, c in self.nav_ctrls.items()}
+        controllers.update({t.name + "_ctrl": t.controller for t in self.teams})
+        for c, ctrl in controllers.items():
+            b.Connect(ctrl.u_port, self.logger.u_ports[c])
+            b.Connect(ctrl.estimates_port, self.logger.est_ports[c])
+            b.Connect(self.supervisor.task_ports[c], self.logger.task_ports[c])
         self.diagram = b.Build()
         self.diagram.set_name("mission")
 
@@ -443,33 +292,41 @@ class Mission:
         ApplySimulatorConfig(SimulatorConfig(integration_scheme=integrator, accuracy=accuracy,
                                              max_step_size=max_step, use_error_control=True), self.simulator)
         ctx = self.simulator.get_mutable_context()
-        for e, p in list(self.robot_plants.items()) + list(self.object_plants.items()):
-            p.set_state(p.GetMyMutableContextFromRoot(ctx), init[e], (0.0, 0.0))
-        for name, cp in self.coupled.items():
-            cp.set_state(cp.GetMyMutableContextFromRoot(ctx), init[cp_object(name, objects)], (0.0, 0.0))
-        self.initial_positions = init
+        init = np.asarray(self.placement.initial, dtype=float).reshape(-1, 2)
+        for k, (e, p) in enumerate(self.plants.all().items()):
+            p.set_state(p.GetMyMutableContextFromRoot(ctx), init[entities.index(e)], (0.0, 0.0))
+        for t in self.teams:
+            t.plant.set_state(t.plant.GetMyMutableContextFromRoot(ctx), init[len(scenario.robots) + t.obj], (0.0, 0.0))
+        self.initial_positions = {e: tuple(init[k]) for k, e in enumerate(entities)}
         self.sim_seconds = 0.0
         self.wall_seconds = 0.0
         self._stop = False
         self._fault = ""
         self._progress, self._last_done = None, -1
-        self._controllers = {f"nav_{r}": c for r, c in self.nav_ctrls.items()}
-        self._controllers.update({f"{name}_ctrl": c for name, c in self.team_ctrls.items()})
+        self._controllers = controllers
         self.simulator.set_monitor(self._Monitor)
 
     # ------------------------------------------------------------------ running
     @property
     def total_steps(self) -> int:
-        return len(self.supervisor.steps)
+        return len(self.sequencer.steps)
 
-    def supervisor_state(self):
-        return self.supervisor.sup_state(self.supervisor.GetMyContextFromRoot(self.simulator.get_context()))
+    def exec_state(self) -> ExecState:
+        """The sequencer's state now."""
+        return self.supervisor.exec_state(self.supervisor.GetMyContextFromRoot(self.simulator.get_context()))
 
     def steps_done(self) -> int:
-        st = self.supervisor_state()
-        if st.status == "done":
-            return self.total_steps
-        return max(0, st.step_idx)
+        return self.sequencer.steps_done(self.exec_state())
+
+    def status_line(self) -> str:
+        """What the mission is doing now, in one line (notebooks, progress)."""
+        st = self.exec_state()
+        t = self.simulator.get_context().get_time()
+        doing = st.status.value
+        if st.active is not None:
+            doing = f"{self.sequencer._op_text(st.active.op)} ({st.active.phase.value})"
+        return (f"t = {t:7.1f} s | steps {self.steps_done():2d}/{self.total_steps} | wall {self.wall_seconds:6.1f} s"
+                f" | {doing}")
 
     def request_stop(self) -> None:
         """Ask a running :meth:`run` to stop at the next integration step (e.g. from a SIGINT handler)."""
@@ -503,7 +360,7 @@ class Mission:
         on its NaN derivatives), ends ``AdvanceTo``; progress is reported per completed plan step."""
         if self._stop:
             return EventStatus.ReachedTermination(self.diagram, "stopped by the user")
-        st = self.supervisor.sup_state(self.supervisor.GetMyContextFromRoot(root_context))
+        st = self.supervisor.exec_state(self.supervisor.GetMyContextFromRoot(root_context))
         for name, cmd in st.tasks.items():
             if cmd is not None:
                 ctrl = self._controllers[name]
@@ -512,7 +369,7 @@ class Mission:
                     self._fault = f"controller fault of {name}: {why}"
                     return EventStatus.ReachedTermination(self.diagram, self._fault)
         if self._progress is not None:
-            done = self.total_steps if st.status == "done" else max(0, st.step_idx)
+            done = self.sequencer.steps_done(st)
             if done != self._last_done:
                 self._last_done = done
                 self._progress(done, self.total_steps)
@@ -528,7 +385,7 @@ class Mission:
     # ------------------------------------------------------------------ log
     def log(self) -> MissionLog:
         """The recorded trajectory, signals and events so far (pandas DataFrames)."""
-        st = self.supervisor_state()
+        st = self.exec_state()
         lg = self.logger
         ents = lg.entities
         if lg.times:
@@ -544,18 +401,18 @@ class Mission:
                    "ok", "propositions", "nba_states", "detail"]
         events = pd.DataFrame(list(st.events), columns=ev_cols)
         t_now = float(self.simulator.get_context().get_time())
-        grasps = list(st.grasps) + [(t0, t_now, self.scenario.robot_names[i], self.scenario.object_names[
-            st.docked[i]]) for i, t0 in st.grasp_open.items()]
+        names = self.scenario.robot_names, self.scenario.object_names
+        grasps = list(st.grasps) + [(t0, t_now, names[0][i], names[1][st.docked[i]]) for i, t0 in st.grasp_open.items()]
         grasps = pd.DataFrame(grasps, columns=["t_start", "t_end", "robot", "object"])
         final = None
         if lg.times:
             X = np.asarray(lg.states[-1]).reshape(len(ents), 4)
-            s = self.supervisor.discrete_state(st, X)
+            s = self.sequencer.discrete_state(st, X)
             final = self.ts.state_dict(s) if min(s[: len(ents)]) >= 0 else {"raw": list(s)}
-        steps = self.supervisor.steps
+        steps = self.sequencer.steps
         expected = self.ts.state_dict(steps[-1].dst) if steps else self.ts.state_dict(self.ts.initial)
-        ok = st.status == "done"
-        message = st.message if st.status != "running" else "not finished"
+        ok = st.status is Status.DONE
+        message = st.message if st.status is not Status.RUNNING else "not finished"
         return MissionLog(self.scenario, self.plan, traj, sig, events, grasps, ok, message, final, expected,
                           self.steps_done(), self.total_steps, t_now, self.wall_seconds, list(st.primitives),
                           st.monitor.states)
@@ -570,18 +427,8 @@ def _simulation_failure(exc: BaseException) -> str:
     return f"{type(exc).__name__} inside the simulation: {first}"
 
 
-def cp_object(name: str, objects) -> str:
-    """Object name of a coupled plant named ``<object>_<r1>+<r2>...``."""
-    for o in sorted(objects, key=len, reverse=True):
-        if name.startswith(o + "_"):
-            return o
-    raise ValueError(f"no object in coupled plant name {name!r}")
-
-
 def load_plan(scenario: Scenario, path):
     """A plan.json for ``scenario``, verified (TS rules, NBA acceptance); user errors name the file."""
-    from mrodrake.planning.plan import Plan, PlanVerificationError, task_nba
-
     path = Path(path)
     if not path.is_file():
         raise UserError(f"--plan: file '{path}' not found")
@@ -599,8 +446,6 @@ def run_mission(scenario, plan=None, planner: str = "stylus", suffix_cycles: int
                 out_dir=None, progress: Callable[[int, int], None] | None = None, **mission_options) -> MissionLog:
     """Plan (unless ``plan`` is given: a Plan or a plan.json path), simulate the prefix and ``suffix_cycles``
     suffix cycles in one diagram, write the outputs to ``out_dir`` (if given) and return the log."""
-    from mrodrake.planning.plan import plan_scenario
-
     if not isinstance(scenario, Scenario):
         scenario = load_scenario(scenario)
     if plan is None:

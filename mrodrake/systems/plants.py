@@ -13,6 +13,11 @@ scenario :class:`~mrodrake.scenario.Friction`) is structural and fixed at constr
   rigidly at x_i = x^o_j + offset_i (offset_i = −d^o_ij).
 
 The contact forces h (robot, object) are optional inputs: zero while unconnected.
+
+In a mission every plant has an abstract ``sync`` input (:class:`~mrodrake.execution.commands.SyncCommand`):
+a per-step unrestricted update copies the commanded [x, ẋ] into the plant's own state when the command's
+version changes (an event may change only its own system's state), and a parked plant has zero dynamics
+(:class:`SyncedRobotPlant`, :class:`SyncedObjectPlant`, :class:`SyncedCoupledPlant`).
 """
 
 from __future__ import annotations
@@ -21,8 +26,10 @@ import math
 from typing import Sequence
 
 import numpy as np
+from pydrake.common.value import AbstractValue
 from pydrake.systems.framework import BasicVector, ContinuousStateIndex, LeafSystem
 
+from mrodrake.execution.commands import SyncCommand
 from mrodrake.scenario import Friction, Scenario
 
 FRICTION_MODELS = ("paper", "viscous")
@@ -204,6 +211,91 @@ class CoupledPlant(_PointMassPlant):
         u = np.zeros(2)
         for k, port in enumerate(self.u_ports):
             m_k, f_k = self._body_friction(context, k + 1, x + self.offsets[k], v)
+            m_total += m_k
+            f_total = f_total + f_k
+            u += port.Eval(context)
+        derivatives.get_mutable_vector().SetFromVector(np.concatenate([v, (u - f_total) / m_total]))
+
+
+# ------------------------------------------------------------------------------------------ synced plants (missions)
+def _declare_sync(plant) -> None:
+    plant.sync_port = plant.DeclareAbstractInputPort("sync", AbstractValue.Make(SyncCommand()))
+    plant._version_index = plant.DeclareAbstractState(AbstractValue.Make(-1))
+    plant.DeclarePerStepUnrestrictedUpdateEvent(plant._Sync)
+
+
+def _apply_sync(plant, context, state) -> None:
+    cmd = plant.sync_port.Eval(context)
+    if cmd.version == context.get_abstract_state(int(plant._version_index)).get_value():
+        return
+    state.get_mutable_abstract_state(int(plant._version_index)).set_value(int(cmd.version))
+    state.get_mutable_continuous_state().SetFromVector(np.concatenate([cmd.x, cmd.v]))
+
+
+class _SyncedBody:
+    """Mixin for a one-body plant: an abstract ``sync`` input (state reset by version, parking brake)."""
+
+    def __init__(self, *args, **kwargs):
+        super().__init__(*args, **kwargs)
+        _declare_sync(self)
+
+    def _Sync(self, context, state):
+        _apply_sync(self, context, state)
+
+    def DoCalcTimeDerivatives(self, context, derivatives):
+        if self.sync_port.Eval(context).frozen:
+            derivatives.get_mutable_vector().SetZero()
+            return
+        super().DoCalcTimeDerivatives(context, derivatives)
+
+
+class SyncedRobotPlant(_SyncedBody, RobotPlant):
+    """RobotPlant with an abstract ``sync`` input (state reset by version, parking brake)."""
+
+
+class SyncedObjectPlant(_SyncedBody, ObjectPlant):
+    """ObjectPlant with an abstract ``sync`` input (state reset by version, parking brake)."""
+
+
+class SyncedCoupledPlant(CoupledPlant):
+    """CoupledPlant whose grasp offsets come from the ``sync`` command (the members' actual offsets at
+    engagement); outputs ``member_<name>`` = [x^o + offset_i, ẋ^o] (eq. coupled dynamics)."""
+
+    def __init__(self, object_mass, object_friction, members, member_masses, member_frictions, name="team"):
+        super().__init__(object_mass, object_friction, members, member_masses, member_frictions,
+                         np.zeros((len(members), 2)), name=name)
+        _declare_sync(self)
+        pre = {self.xc_ticket(), self.sync_port.ticket()}
+        self.member_ports = [self.DeclareVectorOutputPort(f"member_{n}", 4, self._member_out(k),
+                                                          prerequisites_of_calc=pre)
+                             for k, n in enumerate(self.members)]
+
+    def _offsets(self, context) -> np.ndarray:
+        off = self.sync_port.Eval(context).offsets
+        return np.asarray(off, dtype=float).reshape(len(self.members), 2) if len(off) else np.zeros((len(self.members), 2))
+
+    def _member_out(self, k: int):
+        def calc(context, output):
+            s = context.get_continuous_state_vector().CopyToVector()
+            s[:2] += self._offsets(context)[k]
+            output.SetFromVector(s)
+        return calc
+
+    def _Sync(self, context, state):
+        _apply_sync(self, context, state)
+
+    def DoCalcTimeDerivatives(self, context, derivatives):
+        cmd = self.sync_port.Eval(context)
+        if cmd.frozen:
+            derivatives.get_mutable_vector().SetZero()
+            return
+        s = context.get_continuous_state_vector().value()
+        x, v = s[:2], s[2:]
+        offsets = self._offsets(context)
+        m_total, f_total = self._body_friction(context, 0, x, v)
+        u = np.zeros(2)
+        for k, port in enumerate(self.u_ports):
+            m_k, f_k = self._body_friction(context, k + 1, x + offsets[k], v)
             m_total += m_k
             f_total = f_total + f_k
             u += port.Eval(context)

@@ -372,7 +372,7 @@ def test_case_study_map_collapses_holes_in_one_solve():
     """Case study I, longest navigation (holes in corridors along the outer wall, open space behind them):
     the first discretisation already makes every hole's image smaller than 0.08 x its separation."""
     from mrodrake.control.bench import longest_navigation
-    from mrodrake.systems.transition import MAP_OPTIONS
+    from mrodrake.control.tasks import MAP_OPTIONS
 
     free = longest_navigation()[-1].polygon
     pw = PointWorldMap.build(free, **{**MAP_OPTIONS, "max_refinements": 0})

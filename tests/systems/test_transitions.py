@@ -36,8 +36,10 @@ from mrodrake.control.pointworld import PointWorldMap
 from mrodrake.errors import UserError
 from mrodrake.geometry import polygon
 from mrodrake.scenario import load_scenario
-from mrodrake.systems.controllers import NavigationController, TaskCommand, TransportController
-from mrodrake.systems.transition import entity_layout, simulate_transition
+from mrodrake.execution.commands import TaskCommand
+from mrodrake.systems.controllers import NavigationController, TransportController
+from mrodrake.control.tasks import entity_layout
+from mrodrake.systems.transition import simulate_transition
 from mrodrake.viz.figures import figure_signals, figure_trajectory
 
 SCEN = Path(__file__).resolve().parents[2] / "scenarios"

@@ -1,0 +1,628 @@
+"""The sequencer: runs the placed primitives of a plan one at a time (paper Sec. III-A, sequential execution),
+pure Python without Drake.
+
+:meth:`Sequencer.tick` takes the sequencer's state, the time and a snapshot of every entity's [x, ẋ] and
+returns the next state: which controller has which task (:class:`~mrodrake.execution.commands.TaskCommand`),
+which plant is synced, parked or coupled (:class:`~mrodrake.execution.commands.SyncCommand`), which entities
+follow a team plant, the monitored run (:class:`~mrodrake.execution.monitor.WordMonitor`) and the event log.
+A Drake system only has to carry this state and route it to ports
+(:class:`mrodrake.systems.supervisor.Supervisor`).
+
+Each primitive is a small state machine (:class:`Phase`) over an :class:`Active` value: a room move, release
+(disengage the team plant, back off), grasp (dock), navigation or transport (engage the team plant, go).  Its
+end point comes from the plan-wide placement (:mod:`mrodrake.execution.placement`).  Motions use the paper's
+adaptive law on the point-world map of the entity's free space, and the identity-map local law for docking,
+backing off, room moves and the last part of every navigation or transport inside the *approach disk* of the
+target region (:mod:`mrodrake.control.local`); the estimates carry over within one primitive (one episode).
+
+Parking brake: an entity that is not moving has zero dynamics; at rest (speed below ``rest_speed``) its
+velocity is reset to zero (the paper's friction can be negative, so an uncontrolled entity would drift).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, replace
+from enum import Enum
+from typing import Sequence
+
+import numpy as np
+import shapely
+
+from mrodrake.control.adaptive import AdaptiveGains
+from mrodrake.control.freespace import DEFAULT_MARGIN, Disk, entity_free_space
+from mrodrake.control.local import PATH_CLEARANCE, disk_obstacles, local_path, local_task
+from mrodrake.control.tasks import build_task
+from mrodrake.errors import UserError
+from mrodrake.execution.commands import PrimitiveRecord, SyncCommand, TaskCommand
+from mrodrake.execution.monitor import WordMonitor, entity_regions, label_of
+from mrodrake.execution.placement import OpKind, Placement, PlacedOp, layout_slots
+from mrodrake.execution.steps import StepSpec
+from mrodrake.geometry import polygon, workspace_free_space
+from mrodrake.ts import Transport
+
+#: Speed (m/s) under which an arrived entity counts as at rest (then parked).
+REST_SPEED = 0.05
+#: Distance (m) to its goal at which a docking, back-off or room move is complete.
+DOCK_TOL = 0.03
+#: Distance (m) to its planned spot at which a navigation or transport is complete.
+GOAL_TOL = 0.05
+#: Distance (m) to a waypoint of a local motion at which its next leg starts.
+LEG_TOL = 0.25 * PATH_CLEARANCE
+#: Width (m) of the approach ring around a region (less where walls, obstacles or other regions are nearer
+#: than this plus DEFAULT_MARGIN): inside it, a navigation or transport finishes with the local law.
+APPROACH = 10.0
+#: Depth (m) of the entity's ball inside the approach disk at which the local law takes over.
+SETTLE_DEPTH = 0.05
+
+
+class Phase(Enum):
+    """Phases of a primitive."""
+
+    START = "start"
+    ENGAGE = "engage"
+    DISENGAGE = "disengage"
+    MOVING = "moving"
+
+
+class Status(Enum):
+    RUNNING = "running"
+    DONE = "done"
+    FAILED = "failed"
+
+
+@dataclass(frozen=True)
+class Motion:
+    """One controller driving one plant: the moving entity (a robot, or the object of a team), its team,
+    regions, covering radius, start and goal; ``legs`` are the straight legs of the local law (None while on
+    the point-world law), ``leg`` the current one."""
+
+    kind: OpKind
+    entity: int
+    team: tuple[int, ...]
+    controller: str
+    plant: str
+    src: int
+    dst: int
+    radius: float
+    start: tuple[float, float]
+    goal: tuple[float, float]
+    t_start: float
+    limit: float
+    episode: int
+    task: object
+    free: object = None
+    others: tuple = ()
+    offsets: tuple = ()
+    legs: tuple | None = None
+    leg: int = 0
+    settle_tried: bool = False
+    extra: float = 0.0
+
+
+@dataclass(frozen=True)
+class Active:
+    """The primitive in execution: its placed op, its step, its phase and its motion."""
+
+    op: PlacedOp
+    step: StepSpec
+    phase: Phase
+    t0: float
+    motion: Motion | None = None
+
+
+@dataclass(frozen=True)
+class ExecState:
+    """Everything the sequencer knows between two ticks (replaced, never mutated).  Mappings are keyed by
+    system names (controllers, plants) or entity indices and are copied on every change."""
+
+    step_idx: int
+    queue: tuple[PlacedOp, ...]
+    active: Active | None
+    tasks: dict
+    syncs: dict
+    coupled: dict       # entity index -> team plant name it follows (absent: its own plant)
+    engaged: dict       # object index -> team plant name (absent: none)
+    docked: dict        # robot index -> object index
+    grasp_open: dict    # robot index -> time its grasp started
+    monitor: WordMonitor
+    events: tuple = ()
+    grasps: tuple = ()
+    primitives: tuple = ()
+    status: Status = Status.RUNNING
+    message: str = ""
+    version: int = 0
+    episode: int = 0
+
+    def __deepcopy__(self, memo):
+        return self
+
+
+class _Failure(Exception):
+    """A primitive cannot go on (recorded; ends the mission with ok=False)."""
+
+
+@dataclass
+class _Edit:
+    """Mutable working copy of an :class:`ExecState` during one tick."""
+
+    st: ExecState
+    tasks: dict = field(default_factory=dict)
+    syncs: dict = field(default_factory=dict)
+    events: list = field(default_factory=list)
+
+    def __post_init__(self):
+        self.tasks, self.syncs = dict(self.st.tasks), dict(self.st.syncs)
+        self.coupled, self.engaged = dict(self.st.coupled), dict(self.st.engaged)
+        self.docked, self.grasp_open = dict(self.st.docked), dict(self.st.grasp_open)
+        self.monitor = self.st.monitor.copy()
+        self.events = list(self.st.events)
+        self.grasps, self.primitives = list(self.st.grasps), list(self.st.primitives)
+        self.step_idx, self.queue, self.active = self.st.step_idx, self.st.queue, self.st.active
+        self.status, self.message = self.st.status, self.st.message
+        self.version, self.episode = self.st.version, self.st.episode
+
+    def freeze(self) -> ExecState:
+        return ExecState(self.step_idx, self.queue, self.active, self.tasks, self.syncs, self.coupled,
+                         self.engaged, self.docked, self.grasp_open, self.monitor, tuple(self.events),
+                         tuple(self.grasps), tuple(self.primitives), self.status, self.message, self.version,
+                         self.episode)
+
+
+class Sequencer:
+    """Executes ``placement`` (the placed steps of ``plan``) for ``scenario``; ``couplings`` are the
+    (object, team) pairs of the plan's transports, each with a team plant and controller."""
+
+    def __init__(self, scenario, ts, words, placement: Placement, couplings: Sequence[tuple[int, tuple[int, ...]]],
+                 *, rest_speed: float = REST_SPEED, dock_tol: float = DOCK_TOL, goal_tol: float = GOAL_TOL,
+                 time_limit: tuple[float, float] = (1500.0, 10.0)):
+        self.scenario, self.ts, self.words, self.placement = scenario, ts, words, placement
+        self.steps = [p.step for p in placement.steps]
+        self.robots, self.objects = list(scenario.robot_names), list(scenario.object_names)
+        self.entities = self.robots + self.objects
+        self.N, self.M, self.K = len(self.robots), len(self.objects), len(scenario.regions)
+        self.radii = np.array([r.radius for r in scenario.robots] + [o.radius for o in scenario.objects])
+        self.centers = np.array([g.center for g in scenario.regions], dtype=float)
+        self.region_radii = np.array([g.radius for g in scenario.regions], dtype=float)
+        self.couplings = [(int(j), tuple(int(i) for i in team)) for j, team in couplings]
+        self.rest_speed, self.dock_tol, self.goal_tol = float(rest_speed), float(dock_tol), float(goal_tol)
+        self.time_limit = time_limit
+        self.approach = self._approach_widths()
+        self.controllers = [f"nav_{r}" for r in self.robots] + [self.team_name(j, t) + "_ctrl" for j, t in self.couplings]
+        self.plants = self.entities + [self.team_name(j, t) for j, t in self.couplings]
+
+    # ------------------------------------------------------------------ names
+    def team_name(self, j: int, team: Sequence[int]) -> str:
+        """Name of the team plant of object j and ``team`` (``<object>_<r1>+<r2>...``)."""
+        return f"{self.objects[j]}_{'+'.join(self.robots[i] for i in team)}"
+
+    def initial_state(self) -> ExecState:
+        init = np.asarray(self.placement.initial, dtype=float).reshape(-1, 2)
+        syncs = {}
+        for p in self.plants:
+            if p in self.entities:
+                x = init[self.entities.index(p)]
+                syncs[p] = SyncCommand(0, (float(x[0]), float(x[1])), (0.0, 0.0), True, ())
+            else:
+                j, team = next((j, t) for j, t in self.couplings if self.team_name(j, t) == p)
+                syncs[p] = SyncCommand(0, tuple(map(float, init[self.N + j])), (0.0, 0.0), True,
+                                       tuple((0.0, 0.0) for _ in team))
+        regions = entity_regions(self.centers, self.radii, init, self.region_radii)
+        return ExecState(-1, (), None, {c: None for c in self.controllers}, syncs, {}, {}, {}, {},
+                         WordMonitor(self.words, regions))
+
+    # ------------------------------------------------------------------ the tick
+    def tick(self, st: ExecState, t: float, X: np.ndarray) -> ExecState:
+        """The state after one periodic update at time t with the entities' states X (rows [x, y, vx, vy])."""
+        if st.status is not Status.RUNNING:
+            return st
+        ed = _Edit(st)
+        try:
+            if not np.all(np.isfinite(X)):
+                raise _Failure(f"non-finite entity state at t={t:.2f}")
+            self._monitor(ed, t, X)
+            self._advance(ed, t, X)
+        except _Failure as exc:
+            self._fail(ed, t, str(exc))
+        return ed.freeze()
+
+    def abort(self, st: ExecState, t: float, reason: str) -> ExecState:
+        """End the mission as a failure of the primitive in execution, from outside the tick (a controller
+        fault, an integrator failure, any exception inside the simulation); the message names the
+        primitive, its step and the simulated time."""
+        if st.status is not Status.RUNNING:
+            return st
+        ed = _Edit(st)
+        if ed.active is not None:
+            a = ed.active
+            where = f"{self._op_text(a.op)} (step {a.step.index}, plan step {a.step.plan_step})"
+        elif 0 <= ed.step_idx < len(self.steps):
+            where = f"step {self.steps[ed.step_idx].index}"
+        else:
+            where = "the mission"
+        self._fail(ed, t, f"{where} failed at t = {t:.2f} s: {reason}")
+        return ed.freeze()
+
+    def discrete_state(self, st: ExecState, X: np.ndarray) -> tuple:
+        """The executed TS state: region of every entity (−1: none) and grasps from the docking record."""
+        reg = entity_regions(self.centers, self.radii, X[:, :2], self.region_radii, tol=1e-6)
+        return tuple(int(k) for k in reg) + tuple(st.docked.get(i, -1) for i in range(self.N))
+
+    def steps_done(self, st: ExecState) -> int:
+        return len(self.steps) if st.status is Status.DONE else max(0, st.step_idx)
+
+    def _advance(self, ed: _Edit, t: float, X: np.ndarray) -> None:
+        while ed.status is Status.RUNNING:
+            if ed.active is None:
+                if ed.queue:
+                    op, ed.queue = ed.queue[0], ed.queue[1:]
+                    ed.active = Active(op, self.steps[ed.step_idx], Phase.START, t)
+                else:
+                    if ed.step_idx >= 0:
+                        self._end_step(ed, X)
+                    ed.step_idx += 1
+                    if ed.step_idx >= len(self.steps):
+                        ed.status, ed.message = Status.DONE, "mission complete"
+                        return
+                    ed.monitor.begin_step()
+                    ed.queue = self.placement.steps[ed.step_idx].ops
+                    continue
+            if not self._run(ed, t, X):
+                return
+            ed.active = None
+
+    def _end_step(self, ed: _Edit, X: np.ndarray) -> None:
+        spec = self.steps[ed.step_idx]
+        ed.monitor.end_step()
+        if not ed.monitor.contains(spec.dst_q):
+            raise _Failure(f"step {spec.index}: the monitored NBA run {ed.monitor.states} does not contain the "
+                           f"plan's NBA state {spec.dst_q}")
+        got = self.discrete_state(ed.freeze(), X)
+        if got != tuple(spec.dst):
+            shown = self.ts.state_dict(got) if min(got[: self.N + self.M]) >= 0 else got
+            raise _Failure(f"step {spec.index}: executed state {shown} differs from the plan's "
+                           f"{self.ts.state_dict(spec.dst)}")
+
+    def _monitor(self, ed: _Edit, t: float, X: np.ndarray) -> None:
+        regions = entity_regions(self.centers, self.radii, X[:, :2], self.region_radii, tol=1e-6)
+        if not ed.monitor.observe(regions):
+            return
+        lab = label_of(ed.monitor.regions, self.K)
+        props = [p for b, p in enumerate(self.ts.propositions) if lab >> b & 1]
+        spec = self.steps[ed.step_idx] if 0 <= ed.step_idx < len(self.steps) else None
+        self._event(ed, "label", t, spec, ok=bool(ed.monitor.run), propositions=" ".join(props),
+                    nba_states=" ".join(map(str, ed.monitor.states)))
+        if not ed.monitor.run:
+            raise _Failure(f"the monitored NBA run died at t={t:.2f} (propositions: {' '.join(props) or 'none'})")
+
+    def _fail(self, ed: _Edit, t: float, msg: str) -> None:
+        if ed.active is not None:
+            self._primitive_event(ed, t, ok=False, detail=msg)
+            ed.active = None
+        ed.status, ed.message = Status.FAILED, msg
+        for c in ed.tasks:
+            ed.tasks[c] = None
+
+    # ------------------------------------------------------------------ events
+    def _event(self, ed: _Edit, kind: str, t: float, spec: StepSpec | None, **row) -> None:
+        base = {"kind": kind, "t_start": row.pop("t_start", t), "t_end": t, "step": spec.index if spec else 0,
+                "plan_step": spec.plan_step if spec else 0, "action": "", "entities": "", "from_region": "",
+                "to_region": "", "ok": True, "propositions": "", "nba_states": "", "detail": ""}
+        base.update(row)
+        ed.events.append(base)
+
+    def _op_text(self, op: PlacedOp) -> str:
+        if op.kind is OpKind.ROOM:
+            who = self.entities[op.entity]
+            return f"room move of {who} in {self.scenario.region_names[op.region]}"
+        return self.ts.format_action(op.action, "names")
+
+    def _primitive_event(self, ed: _Edit, t: float, ok: bool = True, detail: str = "") -> None:
+        a = ed.active
+        op, names = a.op, self.scenario.region_names
+        act = op.action
+        if op.kind is OpKind.ROOM:
+            ents, src, dst = [self.entities[op.entity]] + [self.robots[i] for i in op.team], op.region, op.region
+        elif op.kind is OpKind.NAVIGATE:
+            ents, src, dst = [self.robots[act.robot]], act.src, act.dst
+        elif op.kind is OpKind.TRANSPORT:
+            ents, src, dst = [self.objects[act.obj]] + [self.robots[i] for i in act.team], act.src, act.dst
+        else:
+            ents, src, dst = [self.robots[act.robot], self.objects[act.obj]], op.region, op.region
+        self._event(ed, "room" if op.kind is OpKind.ROOM else "primitive", t, a.step, t_start=a.t0,
+                    action=self._op_text(op), entities=" ".join(ents), from_region=names[src], to_region=names[dst],
+                    ok=bool(ok), nba_states=" ".join(map(str, ed.monitor.states)), detail=detail)
+
+    # ------------------------------------------------------------------ plant commands
+    def _sync(self, ed: _Edit, plant: str, x, v=(0.0, 0.0), frozen: bool = True, offsets=None) -> None:
+        old = ed.syncs[plant]
+        ed.version += 1
+        ed.syncs[plant] = SyncCommand(ed.version, tuple(map(float, x)), tuple(map(float, v)), bool(frozen),
+                                      old.offsets if offsets is None else tuple(map(tuple, np.asarray(offsets, float))))
+
+    def _unfreeze(self, ed: _Edit, plant: str) -> None:
+        ed.syncs[plant] = replace(ed.syncs[plant], frozen=False)
+
+    def _limit(self, dist: float) -> float:
+        return self.time_limit[0] + self.time_limit[1] * dist
+
+    # ------------------------------------------------------------------ geometry
+    def _disks(self, X: np.ndarray, exclude: set[int]) -> list[Disk]:
+        return [Disk(self.entities[e], (float(X[e, 0]), float(X[e, 1])), float(self.radii[e]))
+                for e in range(len(self.entities)) if e not in exclude]
+
+    def _approach_widths(self) -> np.ndarray:
+        """Width of the approach ring of every region: APPROACH, or the clearance of the region's disk to
+        walls, obstacles and other regions minus DEFAULT_MARGIN if smaller (never negative)."""
+        ws = self.scenario.workspace
+        free = workspace_free_space(polygon(ws.boundary), [polygon(o.polygon) for o in ws.obstacles])
+        out = []
+        for k, (c, R) in enumerate(zip(self.centers, self.region_radii)):
+            clear = free.boundary.distance(shapely.Point(*c)) - R
+            for m, (cm, Rm) in enumerate(zip(self.centers, self.region_radii)):
+                if m != k:
+                    clear = min(clear, math.hypot(*(c - cm)) - R - Rm)
+            out.append(max(0.0, min(APPROACH, clear - DEFAULT_MARGIN)))
+        return np.array(out)
+
+    def _local_world(self, X: np.ndarray, entity: int, radius: float, k: int, exclude=(), extra: float = 0.0):
+        """(rim centre, rim radius, disk centres, grown radii) of a local motion of ``entity`` (covering
+        ``radius``) in region k, its rim grown by ``extra``; ``exclude``: its team, which moves with it."""
+        c, R = self.centers[k], float(self.region_radii[k] + extra - radius)
+        centers, radii = disk_obstacles(X, self.radii, radius, [entity, *exclude], c, R)
+        return c, R, centers, radii
+
+    def _team_radius(self, team: Sequence[int], offsets: np.ndarray, j: int) -> float:
+        return max(float(self.radii[self.N + j]),
+                   max((float(np.hypot(*offsets[m])) + self.radii[i] for m, i in enumerate(team)), default=0.0))
+
+    # ------------------------------------------------------------------ motions
+    def _new_episode(self, ed: _Edit) -> int:
+        ed.episode += 1
+        return ed.episode
+
+    def _start_point_world(self, ed: _Edit, t: float, X: np.ndarray, op: PlacedOp, *, entity: int, team: tuple,
+                           radius: float, src: int, dst: int, plant: str, controller: str, offsets=()) -> Motion:
+        movers = {entity} | set(team)
+        others = self._disks(X, movers)
+        start, goal = X[entity, :2].copy(), np.asarray(op.goal, dtype=float)
+        try:
+            free = entity_free_space(self.scenario, radius, start, goal, src, dst, others)
+            task = build_task(self.scenario, free, max(1, len(team)), label=f"{self.entities[entity]} {op.kind.value}")
+        except (UserError, ValueError) as exc:
+            raise _Failure(f"{op.kind.value} of {self.entities[entity]}: {str(exc).splitlines()[0]}") from None
+        ep = self._new_episode(ed)
+        ed.tasks[controller] = TaskCommand(task, ep)
+        self._unfreeze(ed, plant)
+        return Motion(op.kind, entity, team, controller, plant, src, dst, radius, tuple(start), tuple(goal), t,
+                      self._limit(float(np.hypot(*(goal - start)))), ep, task, free, tuple(others),
+                      tuple(map(tuple, np.asarray(offsets, dtype=float).reshape(-1, 2))))
+
+    def _leg_task(self, X: np.ndarray, m: Motion):
+        c, R, centers, radii = self._local_world(X, m.entity, m.radius, m.dst, m.team, m.extra)
+        ctrl = self.scenario.control
+        # a team of n robots and its object has n + 1 bodies whose friction bounds add up (α_A = Σ α):
+        # k_v_local per body keeps the velocity loop damped (tests/control/test_local.py)
+        gains = replace(AdaptiveGains.from_scenario(ctrl), k_v=ctrl.k_v_local * (1 + len(m.team)))
+        try:
+            return local_task(m.legs[m.leg], centers, radii, c, R, gains, k1=ctrl.k1_local, k2=ctrl.k2,
+                              start=X[m.entity, :2], cf=max(1, len(m.team)),
+                              label=f"{self.entities[m.entity]} {m.kind.value} leg {m.leg + 1}/{len(m.legs)}")
+        except ValueError as exc:
+            raise _Failure(f"{m.kind.value} of {self.entities[m.entity]}: {exc}") from None
+
+    def _start_local(self, ed: _Edit, t: float, X: np.ndarray, op: PlacedOp, *, entity: int, team: tuple,
+                     radius: float, plant: str, controller: str, goal: np.ndarray, offsets=()) -> Motion:
+        """A local motion of ``entity`` (a robot, or a team's object) inside the region of ``op`` to ``goal``."""
+        k = op.region
+        c, R, centers, radii = self._local_world(X, entity, radius, k, team)
+        try:
+            legs = local_path(X[entity, :2], goal, centers, radii, c, R)
+        except ValueError as exc:
+            raise _Failure(f"{self._op_text(op)}: {exc}") from None
+        start = X[entity, :2].copy()
+        length = float(np.sum(np.linalg.norm(np.diff(np.vstack([start, legs]), axis=0), axis=1)))
+        ep = self._new_episode(ed)
+        m = Motion(op.kind, entity, team, controller, plant, k, k, radius, tuple(start), tuple(map(float, goal)), t,
+                   self._limit(length), ep, None, None, tuple(self._disks(X, {entity, *team})),
+                   tuple(map(tuple, np.asarray(offsets, dtype=float).reshape(-1, 2))),
+                   tuple(map(tuple, legs)), 0, True)
+        task = self._leg_task(X, m)
+        ed.tasks[controller] = TaskCommand(task, ep)
+        self._unfreeze(ed, plant)
+        return replace(m, task=task)
+
+    def _settle(self, ed: _Edit, X: np.ndarray, m: Motion) -> Motion:
+        """Inside the approach disk of its target region a navigation or transport finishes with the local law
+        (same episode: the estimates carry over).  Without a local path the point-world law carries on."""
+        if m.kind not in (OpKind.NAVIGATE, OpKind.TRANSPORT) or m.legs is not None or m.settle_tried:
+            return m
+        k, x = m.dst, X[m.entity, :2]
+        depth = self.region_radii[k] + self.approach[k] - math.hypot(*(x - self.centers[k])) - m.radius
+        slow = math.hypot(*X[m.entity, 2:]) <= self.rest_speed
+        if depth < SETTLE_DEPTH and not (slow and depth >= 0.1 * SETTLE_DEPTH):
+            return m
+        c, R, centers, radii = self._local_world(X, m.entity, m.radius, k, m.team, self.approach[k])
+        try:
+            legs = local_path(x, np.asarray(m.goal), centers, radii, c, R)
+        except ValueError:
+            return replace(m, settle_tried=True)
+        m = replace(m, legs=tuple(map(tuple, legs)), leg=0, settle_tried=True, extra=float(self.approach[k]))
+        ed.tasks[m.controller] = TaskCommand(self._leg_task(X, m), m.episode)
+        return m
+
+    def _next_leg(self, ed: _Edit, X: np.ndarray, m: Motion) -> Motion:
+        if m.legs is None or m.leg >= len(m.legs) - 1:
+            return m
+        if math.hypot(*(X[m.entity, :2] - np.asarray(m.legs[m.leg]))) > LEG_TOL:
+            return m
+        m = replace(m, leg=m.leg + 1)
+        task = self._leg_task(X, m)
+        ed.tasks[m.controller] = TaskCommand(task, m.episode)
+        return m if m.kind in (OpKind.NAVIGATE, OpKind.TRANSPORT) else replace(m, task=task)
+
+    def _arrived(self, X: np.ndarray, m: Motion) -> bool:
+        """At rest on the last leg and near the goal (local motions within dock_tol; navigations and
+        transports within goal_tol, or, when no local path finished them, inside the target region with half
+        the layout spacing to spare)."""
+        x, v = X[m.entity, :2], X[m.entity, 2:]
+        if math.hypot(*v) > self.rest_speed:
+            return False
+        if m.legs is not None and m.leg < len(m.legs) - 1:
+            return False
+        to_goal = math.hypot(*(x - np.asarray(m.goal)))
+        if m.kind in (OpKind.NAVIGATE, OpKind.TRANSPORT):
+            depth = self.region_radii[m.dst] - math.hypot(*(x - self.centers[m.dst])) - m.radius
+            return to_goal <= self.goal_tol or (m.legs is None and depth >= 0.5 * self.scenario.layout.spacing)
+        return to_goal <= self.dock_tol
+
+    def _wait(self, ed: _Edit, t: float, X: np.ndarray, a: Active) -> bool:
+        """Progress the motion of ``a``; True once it has arrived (then parked and recorded)."""
+        m = self._next_leg(ed, X, self._settle(ed, X, a.motion))
+        ed.active = replace(a, motion=m)
+        if self._arrived(X, m):
+            ed.tasks[m.controller] = None
+            self._sync(ed, m.plant, X[m.entity, :2], (0.0, 0.0), True)
+            ed.primitives.append(PrimitiveRecord(
+                m.kind.value, self.entities[m.entity], tuple(self.robots[i] for i in m.team), m.src, m.dst, m.radius,
+                np.asarray(m.start), np.asarray(m.goal), m.others, m.free, m.task, m.controller,
+                np.asarray(m.offsets).reshape(-1, 2), m.t_start, t))
+            return True
+        if t - m.t_start > m.limit:
+            raise _Failure(f"{m.kind.value} of {self.entities[m.entity]}: time limit {m.limit:.0f} s exceeded")
+        return False
+
+    # ------------------------------------------------------------------ primitives
+    def _run(self, ed: _Edit, t: float, X: np.ndarray) -> bool:
+        """Progress the active primitive; True when it is complete."""
+        a = ed.active
+        handler = {OpKind.ROOM: self._room, OpKind.RELEASE: self._release, OpKind.GRASP: self._grasp,
+                   OpKind.NAVIGATE: self._navigate, OpKind.TRANSPORT: self._transport}[a.op.kind]
+        done = handler(ed, t, X, a)
+        if done:
+            self._primitive_event(ed, t)
+        return done
+
+    def _room(self, ed: _Edit, t: float, X: np.ndarray, a: Active) -> bool:
+        op = a.op
+        if a.phase is Phase.START:
+            if op.entity < self.N:
+                m = self._start_local(ed, t, X, op, entity=op.entity, team=(), radius=float(self.radii[op.entity]),
+                                      plant=self.robots[op.entity], controller=f"nav_{self.robots[op.entity]}",
+                                      goal=np.asarray(op.goal))
+                ed.active = replace(a, phase=Phase.MOVING, motion=m)
+                return False
+            j = op.entity - self.N
+            if not self._engage(ed, X, j, op.team):
+                ed.active = replace(a, phase=Phase.ENGAGE)
+                return False
+            a = ed.active = replace(a, phase=Phase.ENGAGE)
+        if a.phase is Phase.ENGAGE:
+            j = op.entity - self.N
+            self._route(ed, j, op.team)
+            name = self.team_name(j, op.team)
+            offsets = np.asarray(ed.syncs[name].offsets, dtype=float)
+            m = self._start_local(ed, t, X, op, entity=op.entity, team=op.team,
+                                  radius=self._team_radius(op.team, offsets, j), plant=name,
+                                  controller=name + "_ctrl", goal=np.asarray(op.goal), offsets=offsets)
+            ed.active = replace(a, phase=Phase.MOVING, motion=m)
+            return False
+        return self._wait(ed, t, X, a)
+
+    def _engage(self, ed: _Edit, X: np.ndarray, j: int, team: tuple) -> bool:
+        """Couple object j and ``team`` to their team plant (synced to the object with the members' actual
+        offsets, so nothing jumps); True if it already was coupled."""
+        name = self.team_name(j, team)
+        if ed.engaged.get(j) == name:
+            return True
+        if ed.engaged.get(j) is not None:
+            raise _Failure(f"{self.objects[j]}: still coupled to another team")
+        xo = X[self.N + j, :2]
+        self._sync(ed, name, xo, (0.0, 0.0), True, [X[i, :2] - xo for i in team])
+        return False
+
+    def _route(self, ed: _Edit, j: int, team: tuple) -> None:
+        name = self.team_name(j, team)
+        ed.engaged[j] = name
+        for e in (self.N + j, *team):
+            ed.coupled[e] = name
+
+    def _release(self, ed: _Edit, t: float, X: np.ndarray, a: Active) -> bool:
+        op, act = a.op, a.op.action
+        j, i = act.obj, act.robot
+        if a.phase is Phase.START:
+            if i in ed.grasp_open:
+                ed.grasps.append((ed.grasp_open.pop(i), t, self.robots[i], self.objects[j]))
+            ed.docked.pop(i, None)
+            name = ed.engaged.get(j)
+            if name is not None:  # hand the coupled state back to the object and member plants
+                self._sync(ed, self.objects[j], X[self.N + j, :2])
+                for r in next(team for jj, team in self.couplings if self.team_name(jj, team) == name):
+                    self._sync(ed, self.robots[r], X[r, :2])
+                a = ed.active = replace(a, phase=Phase.DISENGAGE)
+                return False
+            a = ed.active = replace(a, phase=Phase.DISENGAGE)
+        if a.phase is Phase.DISENGAGE:
+            name = ed.engaged.pop(j, None)
+            if name is not None:
+                for e in [e for e, n in ed.coupled.items() if n == name]:
+                    ed.coupled.pop(e)
+            m = self._start_local(ed, t, X, op, entity=i, team=(), radius=float(self.radii[i]), plant=self.robots[i],
+                                  controller=f"nav_{self.robots[i]}", goal=np.asarray(op.goal))
+            ed.active = replace(a, phase=Phase.MOVING, motion=m)
+            return False
+        return self._wait(ed, t, X, a)
+
+    def _grasp(self, ed: _Edit, t: float, X: np.ndarray, a: Active) -> bool:
+        op, act = a.op, a.op.action
+        i, j = act.robot, act.obj
+        if a.phase is Phase.START:
+            slot = layout_slots(self.ts, j, op.team, X[self.N + j, :2], op.rotation)[op.team.index(i)]
+            m = self._start_local(ed, t, X, op, entity=i, team=(), radius=float(self.radii[i]), plant=self.robots[i],
+                                  controller=f"nav_{self.robots[i]}", goal=slot)
+            ed.active = replace(a, phase=Phase.MOVING, motion=m)
+            return False
+        if self._wait(ed, t, X, a):
+            ed.docked[i] = j
+            ed.grasp_open[i] = t
+            return True
+        return False
+
+    def _navigate(self, ed: _Edit, t: float, X: np.ndarray, a: Active) -> bool:
+        op, act = a.op, a.op.action
+        if a.phase is Phase.START:
+            r = act.robot
+            m = self._start_point_world(ed, t, X, op, entity=r, team=(), radius=float(self.radii[r]), src=act.src,
+                                        dst=act.dst, plant=self.robots[r], controller=f"nav_{self.robots[r]}")
+            ed.active = replace(a, phase=Phase.MOVING, motion=m)
+            return False
+        return self._wait(ed, t, X, a)
+
+    def _transport(self, ed: _Edit, t: float, X: np.ndarray, a: Active) -> bool:
+        op, act = a.op, a.op.action
+        j, team = act.obj, tuple(act.team)
+        if a.phase is Phase.START:
+            if not self._engage(ed, X, j, team):
+                ed.active = replace(a, phase=Phase.ENGAGE)
+                return False
+            a = ed.active = replace(a, phase=Phase.ENGAGE)
+        if a.phase is Phase.ENGAGE:
+            self._route(ed, j, team)
+            name = self.team_name(j, team)
+            offsets = np.asarray(ed.syncs[name].offsets, dtype=float)
+            m = self._start_point_world(ed, t, X, op, entity=self.N + j, team=team,
+                                        radius=self._team_radius(team, offsets, j), src=act.src, dst=act.dst,
+                                        plant=name, controller=name + "_ctrl", offsets=offsets)
+            ed.active = replace(a, phase=Phase.MOVING, motion=m)
+            return False
+        return self._wait(ed, t, X, a)
+
+
+def couplings_of(plan) -> list[tuple[int, tuple[int, ...]]]:
+    """The (object, team) pairs of a plan's transports, in order of first use."""
+    out: list[tuple[int, tuple[int, ...]]] = []
+    for acts in plan.actions:
+        for a in acts:
+            if isinstance(a, Transport) and (a.obj, tuple(a.team)) not in out:
+                out.append((a.obj, tuple(a.team)))
+    return out

@@ -1,0 +1,146 @@
+"""Plan-wide placement on random executed runs (random walks in the TS, no planner, no Drake): every planned
+configuration is a valid packing, slots sit on their object's layout, teams move rigidly, and what cannot be
+realised is reported naming the step and the region."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from mrodrake.execution.placement import OpKind, PlacementError, layout_slots, place_run
+from mrodrake.execution.steps import StepSpec
+from mrodrake.scenario import load_scenario, scenario_from_dict
+from mrodrake.ts import Grasp, Release, Transport, TransitionSystem
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+@pytest.fixture(scope="module")
+def case1():
+    return TransitionSystem(load_scenario(ROOT / "scenarios" / "case_study_1.yaml"))
+
+
+def random_run(ts: TransitionSystem, seed: int, length: int) -> list[StepSpec]:
+    """A random walk of TS transitions that prefers steps with actions (grasps, transports, navigations)."""
+    rng = np.random.default_rng(seed)
+    s, out = ts.initial, []
+    for k in range(length):
+        succ = [t for t in ts.successor_states(s) if t != s]
+        t = succ[int(rng.integers(len(succ)))] if succ else s
+        out.append(StepSpec(k + 1, k + 1, 0, s, 0, t, 0, ts.actions(s, t)))
+        s = t
+    return out
+
+
+def check_configuration(ts: TransitionSystem, state: tuple, pos: np.ndarray) -> None:
+    """Every body inside its region and at least the layout spacing from every other body (up to 1e-6)."""
+    sc = ts.scenario
+    N, M = ts.N, ts.M
+    radii = np.array(ts.robot_radius + ts.object_radius)
+    for e in range(N + M):
+        g = sc.regions[state[e]]
+        assert math.hypot(*(pos[e] - g.center)) + radii[e] <= g.radius + 1e-6, (e, state[e])
+    for a in range(N + M):
+        for b in range(a + 1, N + M):
+            if state[a] != state[b]:
+                continue
+            gap = math.hypot(*(pos[a] - pos[b])) - radii[a] - radii[b]
+            grasped = (a < N and state[N + M + a] == b - N) or (b < N and state[N + M + b] == a - N)
+            need = ts.grasp_gap if grasped else 0.0  # a docked robot sits grasp_gap from its object
+            assert gap >= min(need, sc.layout.spacing) - 1e-6, (a, b, gap)
+
+
+@settings(max_examples=12, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(st.integers(0, 10**6))
+def test_random_runs_place_valid_configurations(case1, seed):
+    ts = case1
+    steps = random_run(ts, seed, 14)
+    try:
+        pl = place_run(ts, steps, seed=seed % 7)
+    except PlacementError as exc:
+        assert str(exc).startswith("step ") and "region '" in str(exc) and "\n" not in str(exc)
+        return
+    pos = np.asarray(pl.initial)
+    check_configuration(ts, steps[0].src, pos)
+    for sp in pl.steps:
+        pos = np.asarray(sp.positions)
+        check_configuration(ts, sp.step.dst, pos)
+        for op in sp.ops:
+            if op.kind is OpKind.GRASP:
+                j = op.action.obj
+                slot = layout_slots(ts, j, op.team, pos[ts.N + j], op.rotation)[op.team.index(op.action.robot)]
+                assert np.allclose(slot, op.goal, atol=1e-9)
+                assert np.allclose(pos[op.action.robot], op.goal, atol=1e-9)
+            if op.kind in (OpKind.NAVIGATE, OpKind.TRANSPORT):
+                assert np.allclose(pos[op.entity], op.goal, atol=1e-9)
+        # the ops are the step's actions in the plan's order, grasps and releases first
+        acts = [op.action for op in sp.ops if op.kind is not OpKind.ROOM]
+        assert sorted(map(repr, acts)) == sorted(map(repr, sp.step.actions))
+
+
+def test_teams_move_rigidly_and_release_clear_of_the_object(case1):
+    ts = case1
+    s0 = ts.initial  # r1 p1, r2 p3, r3 p4, o1 p3(?), o2 p1
+    N, M = ts.N, ts.M
+    j = 1  # o2 in p1 with r1 there; bring r3 to p1, grasp with r1 and r3, carry to p4, release
+    k = s0[N + j]
+    s1 = ts.make_state([s0[0], s0[1], k], ts.objects_of(s0), [-1] * N)
+    s2 = ts.make_state(ts.robots_of(s1), ts.objects_of(s1), [j, -1, j])
+    s3 = ts.make_state([3, s0[1], 3], [s0[N], 3], [j, -1, j])
+    s4 = ts.make_state(ts.robots_of(s3), ts.objects_of(s3), [-1, -1, -1])
+    run = [s0, s1, s2, s3, s4]
+    for a, b in zip(run, run[1:]):
+        assert ts.check_transition(a, b) is None
+    steps = [StepSpec(n + 1, n + 1, 0, a, 0, b, 0, ts.actions(a, b)) for n, (a, b) in enumerate(zip(run, run[1:]))]
+    pl = place_run(ts, steps)
+    before, after = np.asarray(pl.steps[1].positions), np.asarray(pl.steps[2].positions)
+    for i in (0, 2):  # members keep their offsets from the object through the transport
+        assert np.allclose(after[i] - after[N + j], before[i] - before[N + j], atol=1e-9)
+    end = np.asarray(pl.steps[3].positions)
+    for i in (0, 2):
+        assert math.hypot(*(end[i] - end[N + j])) >= ts.robot_radius[i] + ts.object_radius[j] + ts.spacing - 1e-9
+    kinds = [[op.kind for op in sp.ops if op.kind is not OpKind.ROOM] for sp in pl.steps]
+    assert kinds == [[OpKind.NAVIGATE], [OpKind.GRASP, OpKind.GRASP], [OpKind.TRANSPORT], [OpKind.RELEASE] * 2]
+
+
+def test_unrealisable_geometry_is_reported_before_simulating():
+    """The TS allows a team (covering radius 1.8 m) into p3 (radius 3 m) next to object o2 (P_s: they fit),
+    but with o2 standing at the centre of p3 (given initial positions) no spot for the team's disk is left,
+    no free robot or team can make room, and objects do not move by themselves: the message names the step
+    and the region."""
+    data = yaml.safe_load((ROOT / "scenarios" / "tiny.yaml").read_text())
+    data["objects"].append({"name": "o2", "mass": 0.25, "radius": 0.2, "required_power": 1,
+                            "initial_region": "p3"})
+    data["task"] = {"formula": "F o1_p3"}
+    ts = TransitionSystem(scenario_from_dict(data))
+    N = ts.N
+    s0 = ts.initial  # r1 p1, r2 p2, o1 p1, o2 p3
+    s1 = ts.make_state([0, 0], ts.objects_of(s0), [-1, -1])
+    s2 = ts.make_state([0, 0], ts.objects_of(s0), [0, 0])
+    s3 = ts.make_state([2, 2], [2, 2], [0, 0])
+    run = [s0, s1, s2, s3]
+    for a, b in zip(run, run[1:]):
+        assert ts.check_transition(a, b) is None
+    steps = [StepSpec(n + 1, n + 1, 0, a, 0, b, 0, ts.actions(a, b)) for n, (a, b) in enumerate(zip(run, run[1:]))]
+    init = np.array([[8.0, 6.8], [8.0, 24.0], [6.0, 6.0], [33.0, 22.0]])  # o2 at the centre of p3
+    with pytest.raises(PlacementError) as e:
+        place_run(ts, steps, initial=init)
+    assert str(e.value).startswith("step 3 (plan step 3): region 'p3': no room for transport o1")
+    assert "\n" not in str(e.value)
+    assert place_run(ts, steps) is not None  # with its own initial layout the run is placed
+
+
+def test_grasp_and_release_actions_come_with_their_points(case1):
+    ts = case1
+    steps = random_run(ts, 3, 20)
+    pl = place_run(ts, steps, seed=0)
+    for sp in pl.steps:
+        for op in sp.ops:
+            if isinstance(op.action, (Grasp, Release, Transport)):
+                assert op.region == sp.step.dst[ts.N + op.action.obj]

@@ -1,0 +1,97 @@
+"""The sequencer's phase machine without Drake: a kinematic stand-in for the plants puts every commanded
+entity at its goal, so each primitive must run through its phases in the plan's order, couple and uncouple
+teams, keep the monitored run consistent and end the mission done."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from mrodrake.execution.placement import OpKind, place_run
+from mrodrake.execution.sequencer import Phase, Sequencer, Status, couplings_of
+from mrodrake.execution.steps import expand_steps
+from mrodrake.planning.plan import plan_scenario, task_words
+from mrodrake.scenario import load_scenario
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+@pytest.fixture(scope="module")
+def tiny():
+    sc = load_scenario(ROOT / "scenarios" / "tiny.yaml")
+    plan = plan_scenario(sc, "stylus", seed=0)
+    _, _, words = task_words(sc, plan.ts)
+    placement = place_run(plan.ts, expand_steps(plan, 1), seed=0)
+    return sc, plan, words, placement
+
+
+def _kinematic(seq: Sequencer, st, X: np.ndarray) -> np.ndarray:
+    """Where the plants would be once the active motion has done its current leg: its entity (and team)
+    at the leg's end (the goal of a point-world motion), at rest."""
+    X = X.copy()
+    X[:, 2:] = 0.0
+    a = st.active
+    if a is None or a.motion is None:
+        return X
+    m = a.motion
+    goal = np.asarray(m.legs[m.leg] if m.legs is not None else m.goal)
+    shift = goal - X[m.entity, :2]
+    X[m.entity, :2] = goal
+    for i in m.team:
+        X[i, :2] += shift
+    return X
+
+
+def test_every_primitive_runs_through_its_phases_in_plan_order(tiny):
+    sc, plan, words, placement = tiny
+    seq = Sequencer(sc, plan.ts, words, placement, couplings_of(plan))
+    st = seq.initial_state()
+    X = np.zeros((len(seq.entities), 4))
+    X[:, :2] = np.asarray(placement.initial)
+    seen_phases: dict[OpKind, set] = {}
+    t = 0.0
+    for _ in range(2000):
+        st = seq.tick(st, t, X)
+        if st.status is not Status.RUNNING:
+            break
+        if st.active is not None:
+            seen_phases.setdefault(st.active.op.kind, set()).add(st.active.phase)
+        X = _kinematic(seq, st, X)
+        t += 0.5
+    assert st.status is Status.DONE, st.message
+    assert seq.steps_done(st) == len(seq.steps)
+    prim = [e for e in st.events if e["kind"] == "primitive"]
+    planned = [seq._op_text(op) for sp in placement.steps for op in sp.ops if op.kind is not OpKind.ROOM]
+    assert [e["action"] for e in prim] == planned and all(e["ok"] for e in prim)
+    assert seen_phases[OpKind.TRANSPORT] >= {Phase.ENGAGE, Phase.MOVING}
+    assert seen_phases[OpKind.RELEASE] >= {Phase.DISENGAGE, Phase.MOVING}
+    assert not st.engaged and not st.coupled  # every team released at the end of the suffix cycle
+    assert st.monitor.contains(seq.steps[-1].dst_q)  # the kinematic word is one the plan was verified for
+
+
+def test_abort_names_the_primitive_step_and_time(tiny):
+    sc, plan, words, placement = tiny
+    seq = Sequencer(sc, plan.ts, words, placement, couplings_of(plan))
+    st = seq.initial_state()
+    X = np.zeros((len(seq.entities), 4))
+    X[:, :2] = np.asarray(placement.initial)
+    st = seq.tick(st, 0.0, X)
+    st = seq.abort(st, 12.345, "integrator failure (test)")
+    assert st.status is Status.FAILED
+    op = placement.steps[0].ops[0]
+    assert st.message == f"{seq._op_text(op)} (step 1, plan step 1) failed at t = 12.35 s: integrator failure (test)"
+    assert st.events[-1]["kind"] == "primitive" and not st.events[-1]["ok"]
+    assert all(v is None for v in st.tasks.values())
+
+
+def test_time_limit_ends_a_stuck_primitive(tiny):
+    sc, plan, words, placement = tiny
+    seq = Sequencer(sc, plan.ts, words, placement, couplings_of(plan), time_limit=(5.0, 0.0))
+    st = seq.initial_state()
+    X = np.zeros((len(seq.entities), 4))
+    X[:, :2] = np.asarray(placement.initial)
+    for k in range(40):  # the plants never move
+        st = seq.tick(st, 0.5 * k, X)
+    assert st.status is Status.FAILED and "time limit 5 s exceeded" in st.message
