@@ -40,7 +40,7 @@ from typing import NamedTuple, Sequence
 
 import numpy as np
 
-from mrodrake.control.navfunc import TAU_FRACTION, desired_velocity, outside_free_set, phi_terms
+from mrodrake.control.navfunc import TAU_FRACTION, Barriers, desired_velocity, outside_free_set, phi_terms
 
 _ORIGIN = np.zeros(2)
 
@@ -153,11 +153,13 @@ class LocalBarrierNavigationFunction:
         """The smallest region of influence."""
         return float(self.taus.min())
 
+    def __post_init__(self):
+        b = self.obstacles
+        object.__setattr__(self, "_bar", Barriers.make(_ORIGIN, self.rho0, b, np.zeros(len(b)), self.taus))
+
     def evaluate(self, chi) -> tuple[float, np.ndarray, np.ndarray]:
         """(φ, ∇φ, ∇²φ) at χ (shape (2,))."""
-        b = self.obstacles
-        return phi_terms(np.asarray(chi, dtype=float), self.goal, _ORIGIN, self.rho0, b, np.zeros(len(b)),
-                         self.taus, self.k1, self.k2)
+        return phi_terms(np.asarray(chi, dtype=float), self.goal, self._bar, self.k1, self.k2)
 
 
 def local_barriers(goal, obstacles, starts=(), *, rho_cap: float, tau_cap: float,

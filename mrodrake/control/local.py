@@ -39,7 +39,7 @@ import numpy as np
 from scipy.sparse.csgraph import dijkstra
 
 from mrodrake.control.adaptive import V_MAX, AdaptiveGains, NavigationTask, load_sharing
-from mrodrake.control.navfunc import TAU_FRACTION, phi_terms
+from mrodrake.control.navfunc import TAU_FRACTION, Barriers, phi_terms
 
 #: Clearance (m) the planned legs keep from the grown disks (half of it is required of every leg).
 PATH_CLEARANCE = 0.1
@@ -87,10 +87,13 @@ class DiskWorldNavigationFunction:
         r = x - self.rim_center
         return np.concatenate([[self.rim_radius**2 - r @ r], np.einsum("ij,ij->i", diff, diff) - self.radii**2])
 
+    def __post_init__(self):
+        object.__setattr__(self, "_bar", Barriers.make(self.rim_center, self.rim_radius, self.centers, self.radii,
+                                                       np.concatenate([[self.tau0], self.taus])))
+
     def evaluate(self, x) -> tuple[float, np.ndarray, np.ndarray]:
         """(φ, ∇φ, ∇²φ) at x (φ = +∞ past a barrier's pole: inside a grown disk or outside the rim)."""
-        return phi_terms(np.asarray(x, dtype=float), self.goal, self.rim_center, self.rim_radius, self.centers,
-                         self.radii, np.concatenate([[self.tau0], self.taus]), self.k1, self.k2)
+        return phi_terms(np.asarray(x, dtype=float), self.goal, self._bar, self.k1, self.k2)
 
 
 def _segment_distances(p: np.ndarray, q: np.ndarray, centers: np.ndarray) -> np.ndarray:

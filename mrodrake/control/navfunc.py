@@ -84,37 +84,54 @@ POLE_ULPS = 8.0
 _EPS = float(np.finfo(float).eps)
 
 
-def phi_terms(chi: np.ndarray, goal: np.ndarray, rim_center, rim_radius: float, centers: np.ndarray,
-              radii, taus, k1: float, k2: float) -> tuple[float, np.ndarray, np.ndarray]:
+@dataclass(frozen=True)
+class Barriers:
+    """The barriers of a navigation function, precomputed once: centres c_0..c_L (c_0: the rim's), signed
+    squared radii (d_ℓ = s_ℓ(‖χ − c_ℓ‖² − ρ_ℓ²) with s_0 = −1 for the rim, +1 for disks), regions of
+    influence τ_ℓ (−∞ switches a barrier off) and the rounding scales of :data:`POLE_ULPS`."""
+
+    centers: np.ndarray
+    rho2: np.ndarray
+    sign: np.ndarray
+    taus: np.ndarray
+    cnorm: np.ndarray
+
+    @classmethod
+    def make(cls, rim_center, rim_radius: float, centers, radii, taus) -> "Barriers":
+        c = np.vstack([np.reshape(np.asarray(rim_center, dtype=float), (1, 2)),
+                       np.asarray(centers, dtype=float).reshape(-1, 2)])
+        rho = np.concatenate([[float(rim_radius)], np.asarray(radii, dtype=float).reshape(-1)])
+        t = np.asarray(taus, dtype=float).reshape(-1)
+        sign = np.ones(len(c))
+        sign[0] = -1.0
+        return cls(c, rho * rho, sign, np.where(t > 0.0, t, -np.inf), np.hypot(c[:, 0], c[:, 1]))
+
+
+def phi_terms(chi: np.ndarray, goal: np.ndarray, bar: Barriers, k1: float, k2: float) -> tuple[float, np.ndarray, np.ndarray]:
     """(φ, ∇φ, ∇²φ) at χ of φ = k1‖χ − χ_d‖² + k2 Σ_ℓ (β_ℓ(d_ℓ) − 1) with the rim barrier
     d_0 = R² − ‖χ − c_0‖² and disk barriers d_ℓ = ‖χ − c_ℓ‖² − ρ_ℓ² (ρ_ℓ = 0: the point obstacles b_ℓ of the
-    point world); ``taus`` holds τ_0..τ_L (one per barrier; τ_ℓ = 0 switches barrier ℓ off).
+    point world), :class:`Barriers` ``bar``.
 
     Only barriers with d_ℓ < τ_ℓ contribute (β' = β'' = 0 beyond).  Past a pole, i.e. where some active
     d_ℓ is not positive beyond its rounding bound (:data:`POLE_ULPS`), χ is outside the free set and φ = +∞
     with NaN derivatives (never a finite, negative φ that would push the entity further out)."""
     e = chi - goal
-    r = chi - rim_center
-    diff = chi - centers  # (L, 2)
-    d = np.empty(len(diff) + 1)
-    d[0] = rim_radius * rim_radius - r @ r
-    d[1:] = diff[:, 0] * diff[:, 0] + diff[:, 1] * diff[:, 1] - radii * radii
+    diff = chi - bar.centers  # (L + 1, 2)
+    d = bar.sign * (diff[:, 0] * diff[:, 0] + diff[:, 1] * diff[:, 1] - bar.rho2)
     value = k1 * float(e @ e)
     grad = 2.0 * k1 * e
     hess = np.diag([2.0 * k1, 2.0 * k1])
-    active = np.flatnonzero((taus > 0.0) & (d < taus))
+    active = np.flatnonzero(d < bar.taus)
     if len(active) == 0:
         return value, grad, hess
-    c_act = np.vstack([np.reshape(rim_center, (1, 2)), centers])[active]
-    rho_act = np.concatenate([[rim_radius], radii])[active]
     d_act = d[active]
-    scale = (math.sqrt(float(chi @ chi)) + np.hypot(c_act[:, 0], c_act[:, 1])) ** 2 + rho_act * rho_act
+    scale = (math.sqrt(float(chi @ chi)) + bar.cnorm[active]) ** 2 + bar.rho2[active]
     if np.any(d_act <= POLE_ULPS * _EPS * scale):
         return math.inf, np.full(2, np.nan), np.full((2, 2), np.nan)
-    sign = np.where(active == 0, -1.0, 1.0)
-    grad_d = 2.0 * sign[:, None] * (chi - c_act)
+    sign = bar.sign[active]
+    grad_d = 2.0 * sign[:, None] * diff[active]
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-        b, db, ddb = beta(d_act, taus[active])
+        b, db, ddb = beta(d_act, bar.taus[active])
     value += k2 * float(np.sum(b - 1.0))
     grad = grad + k2 * (db @ grad_d)
     hess = hess + k2 * (float(db @ (2.0 * sign)) * np.eye(2) + (grad_d.T * ddb) @ grad_d)
@@ -154,11 +171,13 @@ class NavigationFunction:
         """φ for a workspace goal x_d: χ_d = H(x_d), b_ℓ = the map's hole points."""
         return cls.for_goal(pw_map(np.asarray(x_goal, dtype=float)), pw_map.hole_points, **kwargs)
 
+    def __post_init__(self):
+        b = self.obstacles
+        object.__setattr__(self, "_bar", Barriers.make(_ORIGIN, 1.0, b, np.zeros(len(b)), np.full(len(b) + 1, self.tau)))
+
     def evaluate(self, chi) -> tuple[float, np.ndarray, np.ndarray]:
         """(φ, ∇φ, ∇²φ) at χ (shape (2,)); only barriers with d_ℓ(χ) < τ contribute (β' = β'' = 0 beyond)."""
-        b = self.obstacles
-        return phi_terms(np.asarray(chi, dtype=float), self.goal, _ORIGIN, 1.0, b, np.zeros(len(b)),
-                         np.full(len(b) + 1, self.tau), self.k1, self.k2)
+        return phi_terms(np.asarray(chi, dtype=float), self.goal, self._bar, self.k1, self.k2)
 
     def value(self, chi) -> float:
         return self.evaluate(chi)[0]
