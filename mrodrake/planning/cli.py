@@ -89,7 +89,9 @@ def run(args: argparse.Namespace) -> int:
     if st.get("first_plan_seconds") is not None:
         timing += f", {st.get('iterations')} iterations (first plan after {st['first_plan_seconds']:.2f} s)"
     print(f"time:       {timing}")
-    print("verified:   every step re-derived from the TS rules; the NBA accepts the lasso")
+    print("verified:   every step re-derived from the TS rules; planned on the executed words (each step's actions "
+          "run in the order listed, every crossing interleaving reaches the NBA state), and every word executing "
+          "the lasso can produce satisfies the task")
     import pandas as pd
 
     with pd.option_context("display.max_rows", None, "display.max_colwidth", None, "display.width", 200):
