@@ -473,7 +473,9 @@ def _record_log(row: dict, task: MissionTask, scenario: Scenario, log, stopped: 
             row.update(failure_kind=str(kind), failure_message=msg)
     row.update(trajectory_metrics(scenario, log.trajectory))
     if task.run_dir is not None:
-        log.write(task.run_dir)
+        from mrodrake.viz.outputs import write_mission
+
+        write_mission(log, task.run_dir)
 
 
 def execute(task: MissionTask) -> dict:

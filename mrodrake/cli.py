@@ -116,7 +116,7 @@ def build_parser() -> argparse.ArgumentParser:
     from mrodrake import campaign
     from mrodrake.logic import cli as logic_cli
     from mrodrake.planning import cli as plan_cli
-    from mrodrake.systems import run_cli
+    from mrodrake import run as run_cli
 
     logic_cli.add_subparser(sub)
     plan_cli.add_subparser(sub)

@@ -27,8 +27,8 @@ from mrodrake.errors import UserError
 from mrodrake.execution.placement import place_run
 from mrodrake.execution.sequencer import ExecState, Sequencer, Status, couplings_of
 from mrodrake.execution.steps import expand_steps
-from mrodrake.planning.plan import Plan, PlanVerificationError, plan_scenario, task_nba, task_words
-from mrodrake.scenario import Scenario, load_scenario
+from mrodrake.planning.plan import Plan, PlanVerificationError, task_nba, task_words
+from mrodrake.scenario import Scenario
 from mrodrake.systems.builders import (AddEntityPlants, AddNavigationControllers, AddStateSwitches, AddSupervisor,
                                        AddTeams)
 from mrodrake.systems.transition import TransitionResult
@@ -134,103 +134,6 @@ class MissionLog:
                                 src=record.src, dst=record.dst, radius=record.radius, start=record.start,
                                 goal=record.goal, others=list(record.others), free=record.free, task=record.task,
                                 log=log, reached=True, status="", t_final=record.t_end, offsets=record.offsets)
-
-    def figure_initial(self, path=None):
-        """Paper Fig. 1 analogue: the workspace, regions (labelled) and every entity at t = 0."""
-        from matplotlib.figure import Figure
-        from matplotlib.patches import Circle, Polygon as MplPolygon
-
-        s = self.scenario
-        fig = Figure(figsize=(8, 7.5))
-        ax = fig.subplots()
-        ax.add_patch(MplPolygon(s.workspace.boundary, closed=True, fill=False, edgecolor="k", linewidth=0.8))
-        for o in s.workspace.obstacles:
-            ax.add_patch(MplPolygon(o.polygon, closed=True, facecolor="#808080", edgecolor="#404040"))
-        for g in s.regions:
-            ax.add_patch(Circle(g.center, g.radius, fill=True, facecolor="#cfe8cf", edgecolor="#2a9d3a"))
-            ax.annotate(g.name, (g.center[0], g.center[1] + g.radius + 1.0), ha="center", fontsize=8)
-        t0 = self.trajectory[self.trajectory["t"] == self.trajectory["t"].min()]
-        rad = {r.name: r.radius for r in s.robots} | {o.name: o.radius for o in s.objects}
-        for _, row in t0.iterrows():
-            robot = row["entity"] in s.robot_names
-            ax.add_patch(Circle((row["x"], row["y"]), rad[row["entity"]],
-                                facecolor="#1f5fbf" if robot else "#d62728", edgecolor="k", linewidth=0.3))
-        bx = np.asarray(s.workspace.boundary)
-        ax.set_xlim(bx[:, 0].min() - 2, bx[:, 0].max() + 2)
-        ax.set_ylim(bx[:, 1].min() - 2, bx[:, 1].max() + 2)
-        ax.set_aspect("equal")
-        ax.set_xlabel("x [m]")
-        ax.set_ylabel("y [m]")
-        ax.set_title(f"{s.name}: initial configuration (robots blue, objects red)", fontsize=10)
-        if path is not None:
-            fig.savefig(path, dpi=150, bbox_inches="tight")
-        return fig
-
-    def write(self, out_dir) -> list[Path]:
-        """Write plan.json, plan.csv, trajectory.csv, signals.csv, events.csv, replay.html and figures/.
-
-        Every file is attempted even if an earlier one fails; then an :class:`OutputError` names what could
-        not be written and where the rest went."""
-        from mrodrake.viz.figures import figure_signals, figure_trajectory
-        from mrodrake.viz.replay import write_replay
-
-        out = Path(out_dir)
-        written: list[Path] = []
-        failed: list[str] = []
-
-        def attempt(path: Path, write) -> None:
-            try:
-                path.parent.mkdir(parents=True, exist_ok=True)
-                result = write(path)
-                written.append(Path(result) if isinstance(result, (str, Path)) else path)
-            except (OSError, ValueError) as exc:
-                failed.append(f"{path.name}: {exc}")
-
-        attempt(out / "plan.json", self.plan.write)
-        attempt(out / "plan.csv", lambda p: self.plan.table().to_csv(p, index=False))
-        for name, df in (("trajectory", self.trajectory), ("signals", self.signals), ("events", self.events)):
-            attempt(out / f"{name}.csv", lambda p, df=df: df.to_csv(p, index=False, float_format="%.10g"))
-        if len(self.trajectory):
-            attempt(out / "replay.html",
-                    lambda p: write_replay(self.scenario, self.trajectory, p, grasps=self.grasps))
-            attempt(out / "figures" / "fig1_initial.png", self.figure_initial)
-        navs = [r for r in self.primitives if r.kind == "navigate"]
-        trans = [r for r in self.primitives if r.kind == "transport"]
-        for recs, f_traj, f_sig in ((navs, "fig2_navigation", "fig3_navigation_signals"),
-                                    (trans, "fig4_transport", "fig5_transport_signals")):
-            if not recs:
-                continue
-            res = self.transition_result(max(recs, key=lambda r: r.t_end - r.t_start))
-            if len(res.log) < 2:
-                continue
-            attempt(out / "figures" / f"{f_traj}_{res.entity}.png", lambda p: figure_trajectory(res, p))
-            attempt(out / "figures" / f"{f_sig}_{res.entity}.png", lambda p: figure_signals(res, p))
-        if failed:
-            raise OutputError(f"could not write {len(failed)} output file(s) to {out}/ ({'; '.join(failed)}); "
-                              f"{len(written)} written", written)
-        return written
-
-
-class OutputError(UserError):
-    """Some output files could not be written; ``written`` lists those that were."""
-
-    def __init__(self, message: str, written: list[Path]):
-        super().__init__(message)
-        self.written = written
-
-
-def ensure_output_dir(path, option: str = "--out") -> Path:
-    """Create ``path`` (with parents) and check that files can be written there, before any simulation."""
-    out = Path(path)
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-        probe = out / ".mrodrake-write-test"
-        probe.write_text("", encoding="utf-8")
-        probe.unlink()
-    except OSError as exc:
-        raise UserError(f"{option}: cannot write to '{out}': {exc.strerror or exc}") from None
-    return out
-
 
 # ------------------------------------------------------------------------------------------ mission
 class Mission:
@@ -440,22 +343,3 @@ def load_plan(scenario: Scenario, path):
     except PlanVerificationError as exc:
         raise UserError(f"{path}: plan does not verify: {exc}") from None
     return plan
-
-
-def run_mission(scenario, plan=None, planner: str = "stylus", suffix_cycles: int = 1, seed: int = 0,
-                out_dir=None, progress: Callable[[int, int], None] | None = None, **mission_options) -> MissionLog:
-    """Plan (unless ``plan`` is given: a Plan or a plan.json path), simulate the prefix and ``suffix_cycles``
-    suffix cycles in one diagram, write the outputs to ``out_dir`` (if given) and return the log."""
-    if not isinstance(scenario, Scenario):
-        scenario = load_scenario(scenario)
-    if plan is None:
-        plan = plan_scenario(scenario, planner, seed=None if planner == "exact" else seed)
-    elif not hasattr(plan, "steps"):
-        plan = load_plan(scenario, plan)
-    if out_dir is not None:
-        ensure_output_dir(out_dir, "out_dir")
-    mission = Mission(scenario, plan, suffix_cycles=suffix_cycles, seed=seed, **mission_options)
-    log = mission.run(progress)
-    if out_dir is not None:
-        log.write(out_dir)
-    return log

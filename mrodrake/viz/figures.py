@@ -14,6 +14,7 @@ from pathlib import Path
 import numpy as np
 from matplotlib.figure import Figure
 from matplotlib.patches import Circle, PathPatch
+from matplotlib.patches import Polygon as MplPolygon
 from matplotlib.path import Path as MplPath
 from shapely.geometry import Polygon
 
@@ -147,4 +148,34 @@ def figure_signals(result, path: str | Path | None = None, member: str | None = 
     plot_estimates(result, ax2)
     fig.suptitle(_title(result), fontsize=10)
     _save(fig, path)
+    return fig
+
+
+def figure_initial(scenario, trajectory, path=None) -> Figure:
+    """Paper Fig. 1 analogue: the workspace, regions (labelled) and every entity at the first sample of
+    ``trajectory`` (t, entity, x, y)."""
+    s = scenario
+    fig = Figure(figsize=(8, 7.5))
+    ax = fig.subplots()
+    ax.add_patch(MplPolygon(s.workspace.boundary, closed=True, fill=False, edgecolor="k", linewidth=0.8))
+    for o in s.workspace.obstacles:
+        ax.add_patch(MplPolygon(o.polygon, closed=True, facecolor="#808080", edgecolor="#404040"))
+    for g in s.regions:
+        ax.add_patch(Circle(g.center, g.radius, fill=True, facecolor="#cfe8cf", edgecolor="#2a9d3a"))
+        ax.annotate(g.name, (g.center[0], g.center[1] + g.radius + 1.0), ha="center", fontsize=8)
+    t0 = trajectory[trajectory["t"] == trajectory["t"].min()]
+    rad = {r.name: r.radius for r in s.robots} | {o.name: o.radius for o in s.objects}
+    for _, row in t0.iterrows():
+        robot = row["entity"] in s.robot_names
+        ax.add_patch(Circle((row["x"], row["y"]), rad[row["entity"]],
+                            facecolor="#1f5fbf" if robot else "#d62728", edgecolor="k", linewidth=0.3))
+    bx = np.asarray(s.workspace.boundary)
+    ax.set_xlim(bx[:, 0].min() - 2, bx[:, 0].max() + 2)
+    ax.set_ylim(bx[:, 1].min() - 2, bx[:, 1].max() + 2)
+    ax.set_aspect("equal")
+    ax.set_xlabel("x [m]")
+    ax.set_ylabel("y [m]")
+    ax.set_title(f"{s.name}: initial configuration (robots blue, objects red)", fontsize=10)
+    if path is not None:
+        fig.savefig(path, dpi=150, bbox_inches="tight")
     return fig

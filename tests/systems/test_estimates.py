@@ -6,7 +6,7 @@ from pathlib import Path
 import numpy as np
 
 from mrodrake.scenario import load_scenario
-from mrodrake.systems.mission import run_mission
+from mrodrake.run import run_mission
 
 TINY = Path(__file__).resolve().parents[2] / "scenarios" / "tiny.yaml"
 

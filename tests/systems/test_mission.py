@@ -11,7 +11,7 @@ import shapely
 from mrodrake.geometry import polygon
 from mrodrake.execution.monitor import WordMonitor, entity_regions
 from mrodrake.planning.plan import task_words
-from mrodrake.systems.supervisor import expand_steps
+from mrodrake.execution.steps import expand_steps
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -20,7 +20,7 @@ ROOT = Path(__file__).resolve().parents[2]
 def mission(request, tmp_path_factory):
     from mrodrake.planning.plan import plan_scenario
     from mrodrake.scenario import load_scenario
-    from mrodrake.systems.mission import run_mission
+    from mrodrake.run import run_mission
 
     scn = load_scenario(ROOT / "scenarios" / f"{request.param}.yaml")
     plan = plan_scenario(scn, "stylus", seed=0)

@@ -11,7 +11,7 @@ from mrodrake import cli
 from mrodrake.control.adaptive import NavigationTask
 from mrodrake.planning.plan import plan_scenario
 from mrodrake.scenario import load_scenario
-from mrodrake.systems.mission import run_mission
+from mrodrake.run import run_mission
 from mrodrake.systems.plants import SyncedCoupledPlant
 
 ROOT = Path(__file__).resolve().parents[2]

@@ -1,8 +1,10 @@
-"""``mrodrake run SCENARIO``: plan (unless ``--plan``), execute the plan in one Drake diagram, write the outputs.
+"""Run a mission end to end (top of the pipeline: planning, execution, outputs): :func:`run_mission` and the
+``mrodrake run SCENARIO`` command.
 
-Writes plan.json, plan.csv, trajectory.csv, signals.csv, events.csv, replay.html and figures/ to ``--out``
-(default ``out/<scenario name>``); a progress bar over plan steps goes to stderr; Ctrl-C stops the
-simulation cleanly and still writes what was recorded.
+``mrodrake run`` plans (unless ``--plan``), executes the plan in one Drake diagram and writes plan.json,
+plan.csv, trajectory.csv, signals.csv, events.csv, replay.html and figures/ to ``--out`` (default
+``out/<scenario name>``); a progress bar over plan steps goes to stderr; Ctrl-C stops the simulation cleanly
+and still writes what was recorded.
 """
 
 from __future__ import annotations
@@ -12,6 +14,33 @@ import signal
 import sys
 import time
 from pathlib import Path
+from typing import Callable
+
+from mrodrake.errors import UserError
+from mrodrake.planning.plan import plan_scenario
+from mrodrake.scenario import Scenario, load_scenario
+from mrodrake.systems.mission import Mission, MissionLog, load_plan
+from mrodrake.viz.outputs import OutputError, ensure_output_dir, write_mission
+
+
+def run_mission(scenario, plan=None, planner: str = "stylus", suffix_cycles: int = 1, seed: int = 0,
+                out_dir=None, progress: Callable[[int, int], None] | None = None, **mission_options) -> MissionLog:
+    """Plan (unless ``plan`` is given: a Plan or a plan.json path), simulate the prefix and ``suffix_cycles``
+    suffix cycles in one diagram, write the outputs to ``out_dir`` (if given) and return the log."""
+    if not isinstance(scenario, Scenario):
+        scenario = load_scenario(scenario)
+    if plan is None:
+        plan = plan_scenario(scenario, planner, seed=None if planner == "exact" else seed)
+    elif not hasattr(plan, "steps"):
+        plan = load_plan(scenario, plan)
+    if out_dir is not None:
+        ensure_output_dir(out_dir, "out_dir")
+    mission = Mission(scenario, plan, suffix_cycles=suffix_cycles, seed=seed, **mission_options)
+    log = mission.run(progress)
+    if out_dir is not None:
+        write_mission(log, out_dir)
+    return log
+
 
 
 def add_subparser(subparsers) -> argparse.ArgumentParser:
@@ -32,11 +61,6 @@ def add_subparser(subparsers) -> argparse.ArgumentParser:
 
 
 def run(args: argparse.Namespace) -> int:
-    from mrodrake.errors import UserError
-    from mrodrake.planning.plan import plan_scenario
-    from mrodrake.scenario import load_scenario
-    from mrodrake.systems.mission import Mission, OutputError, ensure_output_dir, load_plan
-
     if args.suffix_cycles < 0:
         raise UserError(f"--suffix-cycles: must be >= 0, got {args.suffix_cycles}")
     scenario = load_scenario(args.scenario)
@@ -66,7 +90,7 @@ def run(args: argparse.Namespace) -> int:
         signal.signal(signal.SIGINT, previous)
         bar.close()
     try:
-        files, write_error = log.write(out), None
+        files, write_error = write_mission(log, out), None
     except OutputError as exc:
         files, write_error = exc.written, str(exc)
     prim = log.primitive_events
