@@ -4,10 +4,12 @@
     python3 scripts_hunt.py run [--out DIR] [ID ...]  # run missions without a result yet, each in a subprocess
                                                       # under `timeout 900 nice -n 10` (15 min wall cap)
     python3 scripts_hunt.py one ID [--out DIR]        # plan + execute one mission (what `run` calls)
+    python3 scripts_hunt.py scenario ID               # print the mission's scenario YAML
+    python3 scripts_hunt.py decide [--out DIR] [ID ...]  # exact planner on the missions STyLuS* found no plan for
     python3 scripts_hunt.py table [--out DIR]         # the markdown table and counts of notes13_failures.md
 
-``one`` writes DIR/ID/scenario.yaml (the generated scenario: ``python3 -m mrodrake run DIR/ID/scenario.yaml
---seed SEED`` reproduces the mission), plans with ``plan_scenario(sc, "stylus", seed=SEED)``, executes with
+``one`` writes DIR/ID/scenario.yaml (the generated scenario, as ``scenario`` prints it: ``python3 -m mrodrake
+run DIR/ID/scenario.yaml --seed SEED`` reproduces the mission), plans with ``plan_scenario(sc, "stylus", seed=SEED)``, executes with
 ``Mission(sc, plan, seed=SEED)`` (as ``run_mission`` and ``mrodrake run`` do, but keeping the log of a mission
 that raises), writes the usual outputs (events.csv, trajectory.csv, ...) and DIR/ID/result.json.
 Not part of the package.
@@ -44,6 +46,17 @@ MISSIONS = [
     ("corridor", 2, 1, 3, 1331), ("corridor", 3, 2, 4, 1332), ("corridor", 4, 2, 5, 1333),
     ("office", 2, 1, 3, 1341), ("office", 3, 1, 4, 1342), ("office", 3, 2, 4, 1343), ("office", 4, 2, 5, 1344),
     ("office", 5, 3, 5, 1345),
+    # second batch (a third of the first batch's tasks were unsatisfiable)
+    ("lab", 2, 1, 4, 1308), ("lab", 3, 2, 4, 1309), ("lab", 4, 2, 5, 1310),
+    ("narrow", 2, 1, 4, 1316), ("narrow", 3, 1, 5, 1317),
+    ("warehouse", 2, 1, 4, 1326), ("warehouse", 3, 1, 5, 1327), ("warehouse", 4, 1, 5, 1328),
+    ("corridor", 2, 1, 4, 1334), ("corridor", 3, 1, 5, 1335), ("corridor", 5, 2, 5, 1336),
+    ("office", 2, 2, 4, 1346), ("office", 4, 1, 4, 1347), ("office", 5, 2, 5, 1348),
+    # third batch: more office missions (the issue's map), a few more on the others
+    ("office", 2, 1, 4, 1401), ("office", 3, 1, 3, 1402), ("office", 3, 2, 5, 1403), ("office", 4, 3, 5, 1404),
+    ("office", 5, 1, 4, 1405), ("office", 2, 2, 3, 1406),
+    ("lab", 2, 1, 5, 1407), ("lab", 3, 1, 3, 1408), ("narrow", 2, 1, 5, 1409),
+    ("warehouse", 2, 2, 5, 1410), ("warehouse", 3, 3, 5, 1411), ("corridor", 3, 1, 3, 1412),
 ]
 
 #: (class, pattern) in the order they are tried on the failure message (issue 13's classes).
@@ -52,7 +65,7 @@ CLASSES = [
     (2, r"no order of the concurrent actions"),
     (3, r"goal unreachable"),
     (4, r"step smaller than minimum|minimum allowed"),
-    (5, r"point-world map degenerate|det J_H"),
+    (5, r"point-world map degenerate|det J_H|circle barrier"),
     (6, r"monitored NBA run died"),
     (7, r"no reachable grasp point|P_s found no placement|no room for|make room|not in the free space"),
 ]
@@ -131,14 +144,47 @@ def run_one(spec, out: Path) -> dict:
                steps_done=log.steps_done, steps_total=log.steps_total)
     if not res["ok"]:
         res["cls"] = classify(message)
-        res["where"] = _failing_event(log.events)
+        res["where"] = _running_op(mission) if tb else _failing_event(log.events, message)
     return _write(out, res)
 
 
-def _failing_event(events) -> str:
-    """'step s (plan step p): action @ t' of the failed primitive, else of the last event."""
-    if events.empty:
+def _running_op(mission) -> str:
+    """'step s (plan step p): action @ t' of the primitive running when the simulation raised."""
+    st = mission.supervisor_state()
+    if st.op is None:
         return ""
+    return (f"step {st.op.step.index} (plan step {st.op.step.plan_step}): "
+            f"{mission.ts.format_action(st.op.action, 'names')} @ t={float(st.op_t0):.1f}")
+
+
+def decide(mid: str, out: Path) -> None:
+    """Run the exact planner (in a subprocess, 15 min cap) on a mission whose STyLuS* run found no plan;
+    store its verdict as ``exact`` in result.json."""
+    path = out / mid / "result.json"
+    res = json.loads(path.read_text(encoding="utf-8"))
+    if res.get("plan") != "no plan" or "exact" in res:
+        return
+    code = ("import sys; from mrodrake.errors import UserError; from mrodrake.planning.plan import plan_scenario\n"
+            "try:\n    p = plan_scenario(sys.argv[1], 'exact')\n    print('plan exists: cost %.1f' % p.total_cost)\n"
+            "except UserError as e:\n    print(str(e))")
+    t0 = time.perf_counter()
+    proc = subprocess.run(["timeout", str(TIMEOUT), "nice", "-n", "10", sys.executable, "-c", code,
+                           str(out / mid / "scenario.yaml")], cwd=HERE, capture_output=True, text=True)
+    verdict = proc.stdout.strip().splitlines()[-1] if proc.stdout.strip() else (
+        f"undecided (wall-time cap {TIMEOUT} s)" if proc.returncode == 124 else f"exit {proc.returncode}")
+    res["exact"], res["exact_wall"] = verdict, time.perf_counter() - t0
+    if verdict.startswith("task is unsatisfiable"):
+        res["plan"] = "unsat"
+    _write(out / mid, res)
+    print(f"{mid}: {verdict} ({res['exact_wall']:.0f} s)", flush=True)
+
+
+def _failing_event(events, message: str) -> str:
+    """'step s (plan step p): action @ t' of the failed primitive, else of the last event (the step named
+    by the message when there is no event)."""
+    if events.empty:
+        named = re.match(r"step \d+ \(plan step \d+\)", message)
+        return named.group(0) if named else ""
     bad = events[events["ok"] == False]  # noqa: E712 (pandas mask)
     row = (bad if len(bad) else events).iloc[-1]
     return f"step {row['step']} (plan step {row['plan_step']}): {row['action']} @ t={float(row['t_start']):.1f}"
@@ -187,9 +233,13 @@ def table(out: Path) -> str:
         if not path.is_file():
             continue
         r = json.loads(path.read_text(encoding="utf-8"))
+        if r.get("plan") == "ok" and not r.get("ok"):
+            r["cls"] = classify(r.get("message", ""))
         results.append(r)
         outcome = "ok" if r.get("ok") else ("—" if r.get("plan") != "ok" else f"**{r.get('cls')}**")
         msg = r.get("plan_message", "") if r.get("plan") not in ("ok", "?") else r.get("message", "")
+        if "exact" in r:
+            msg = f"STyLuS*: no plan; exact: {r['exact']}"
         msg = msg if len(msg) <= 160 else msg[:157] + "..."
         steps = f"{r['steps_done']}/{r['steps_total']}" if "steps_total" in r else ""
         sim = f"{r['sim']:.0f}" if "sim" in r else ""
@@ -214,7 +264,7 @@ def table(out: Path) -> str:
 
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("command", choices=["list", "run", "one", "table"])
+    p.add_argument("command", choices=["list", "run", "one", "scenario", "decide", "table"])
     p.add_argument("ids", nargs="*", help="mission ids (default: all)")
     p.add_argument("--out", type=Path, default=DEFAULT_OUT)
     args = p.parse_args(argv)
@@ -231,6 +281,13 @@ def main(argv=None) -> int:
         for mid in ids:
             res = run_one(specs_by_id()[mid], args.out / mid)
             print(f"{mid}: {_outcome(res)}")
+    elif args.command == "scenario":
+        for mid in ids:
+            print(yaml.safe_dump(scenario_data(specs_by_id()[mid]), sort_keys=False), end="")
+    elif args.command == "decide":
+        for mid in ids:
+            if (args.out / mid / "result.json").is_file():
+                decide(mid, args.out)
     else:
         print(table(args.out))
     return 0
