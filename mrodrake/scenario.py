@@ -39,6 +39,14 @@ ENTITY_NAME = re.compile(r"^[A-Za-z][A-Za-z0-9]*$")
 #: Obstacle and macro names: identifiers.
 IDENTIFIER = re.compile(r"^[A-Za-z][A-Za-z0-9_]*$")
 
+#: Design range of the adaptive controllers (issue 16; the guarantee tests sample it).  Friction: α ≤ ᾱ per body
+#: (Assumption 1's constant, ``Friction.alpha_bound``; ᾱ = ``control.alpha_max``, default twice the paper's
+#: α = 2 × 1.25, i.e. the paper's model with scale ≤ 2.5); the controllers start α̂ at the entity's bound
+#: (mrodrake.control.adaptive).  Mass: m̂_0 / DESIGN_MASS_RATIO ≤ m ≤ DESIGN_MASS_RATIO · m̂_0 per body (0.1 to
+#: 2.5 kg with the default m̂_0 = 0.5).  ``mrodrake validate`` warns about true parameters outside the range.
+DESIGN_ALPHA_MAX = 5.0
+DESIGN_MASS_RATIO = 5.0
+
 
 @dataclass(frozen=True, config=_CFG)
 class Obstacle:
@@ -140,6 +148,10 @@ class ControlGains:
     abstract).  k_v_local exceeds the friction bound α = 2.5 of the paper's f_i (Section IV), so that the
     anti-damping part of f_i cannot sustain a limit cycle around the grasp point while α̂ is still small;
     it is per body: a robots-object team (friction bounds add up) uses k_v_local × (1 + members).
+    alpha_max: the design friction bound ᾱ per body (:data:`DESIGN_ALPHA_MAX`); every controller starts its
+    friction estimate at the bound of its entity, α̂(0) = max(alpha_hat0, n ᾱ) for n bodies (a robot: 1, a
+    robots-object team: 1 + members), which keeps the velocity loop damped against any friction with α ≤ ᾱ per
+    body (mrodrake.control.adaptive); 0 gives the paper's α̂(0) = alpha_hat0.
     """
 
     k1: PosNum = 0.01
@@ -154,6 +166,7 @@ class ControlGains:
     alpha_hat0: NonNegNum = 0.0
     k1_local: PosNum = 0.25
     k_v_local: PosNum = 4.0
+    alpha_max: NonNegNum = DESIGN_ALPHA_MAX
 
 
 @dataclass(frozen=True, config=_CFG)
