@@ -326,8 +326,9 @@ def _yaml_error(source: str, exc: yaml.YAMLError) -> UserError:
     return UserError(f"{source}: malformed YAML: {problem}")
 
 
-def parse_scenario(text: str, source: str = "<scenario>") -> Scenario:
-    """Parse and fully validate scenario YAML text; raise UserError naming the file line and field."""
+def parse_scenario(text: str, source: str = "<scenario>", warnings: list[str] | None = None) -> Scenario:
+    """Parse and fully validate scenario YAML text; raise UserError naming the file line and field.
+    ``warnings``: a list to append design-range warnings to (:func:`design_range_warnings`)."""
     try:
         root = yaml.compose(text, Loader=_UniqueKeyLoader)
         data = yaml.load(text, Loader=_UniqueKeyLoader)
@@ -345,11 +346,13 @@ def parse_scenario(text: str, source: str = "<scenario>") -> Scenario:
         loc = tuple(p for p in err["loc"] if p != "__root__")
         raise UserError(f"{where(loc)}: {_pydantic_message(err)}") from None
     check_scenario(scenario, where)
+    if warnings is not None:
+        warnings.extend(design_range_warnings(scenario, where))
     return scenario
 
 
-def load_scenario(path: str | Path) -> Scenario:
-    """Read a scenario YAML file and validate it (see :func:`parse_scenario`)."""
+def load_scenario(path: str | Path, warnings: list[str] | None = None) -> Scenario:
+    """Read a scenario YAML file and validate it (see :func:`parse_scenario`; ``warnings`` likewise)."""
     p = Path(path)
     try:
         text = p.read_text(encoding="utf-8")
@@ -357,7 +360,7 @@ def load_scenario(path: str | Path) -> Scenario:
         raise UserError(f"{path}: no such file") from None
     except (OSError, UnicodeDecodeError) as e:
         raise UserError(f"{path}: cannot read: {e}") from None
-    return parse_scenario(text, source=str(path))
+    return parse_scenario(text, source=str(path), warnings=warnings)
 
 
 def scenario_from_dict(data: dict[str, Any], source: str = "<dict>") -> Scenario:
@@ -498,3 +501,25 @@ def check_scenario(s: Scenario, where: _Where | None = None) -> None:
     _check_geometry(s, where)
     _check_initial(s, where)
     _check_task(s, where)
+
+
+def design_range_warnings(s: Scenario, where: _Where | None = None) -> list[str]:
+    """One line ``<file>:<line>: <field path>: ... outside the design range ...`` per true parameter outside the
+    design range of the controllers (:data:`DESIGN_ALPHA_MAX`, :data:`DESIGN_MASS_RATIO`): not an error, the
+    plants simulate any positive mass and friction, but the controllers' guarantees assume the range."""
+    where = where or _Where("<scenario>", None)
+    c = s.control
+    lo, hi = c.m_hat0 / DESIGN_MASS_RATIO, c.m_hat0 * DESIGN_MASS_RATIO
+    out = []
+    for group in ("robots", "objects"):
+        for i, b in enumerate(getattr(s, group)):
+            if not lo <= b.mass <= hi:
+                out.append(f"{where((group, i, 'mass'))}: {b.mass:g} kg outside the design range [{lo:g}, {hi:g}] kg "
+                           f"of the controllers (m̂_0/{DESIGN_MASS_RATIO:g} to {DESIGN_MASS_RATIO:g} m̂_0, "
+                           f"m̂_0 = control.m_hat0 = {c.m_hat0:g} kg)")
+            alpha = b.friction.alpha_bound
+            if alpha > c.alpha_max:
+                out.append(f"{where((group, i, 'friction', 'scale'))}: friction bound α = {alpha:g} ({b.friction.model} "
+                           f"model, scale {b.friction.scale:g}) outside the design range α ≤ {c.alpha_max:g} per body "
+                           f"of the controllers (control.alpha_max)")
+    return out
