@@ -39,6 +39,14 @@ ENTITY_NAME = re.compile(r"^[A-Za-z][A-Za-z0-9]*$")
 #: Obstacle and macro names: identifiers.
 IDENTIFIER = re.compile(r"^[A-Za-z][A-Za-z0-9_]*$")
 
+#: Design range of the adaptive controllers (issue 16; the guarantee tests sample it).  Friction: α ≤ ᾱ per body
+#: (Assumption 1's constant, ``Friction.alpha_bound``; ᾱ = ``control.alpha_max``, default twice the paper's
+#: α = 2 × 1.25, i.e. the paper's model with scale ≤ 2.5); the controllers start α̂ at the entity's bound
+#: (mrodrake.control.adaptive).  Mass: m̂_0 / DESIGN_MASS_RATIO ≤ m ≤ DESIGN_MASS_RATIO · m̂_0 per body (0.1 to
+#: 2.5 kg with the default m̂_0 = 0.5).  ``mrodrake validate`` warns about true parameters outside the range.
+DESIGN_ALPHA_MAX = 5.0
+DESIGN_MASS_RATIO = 5.0
+
 
 @dataclass(frozen=True, config=_CFG)
 class Obstacle:
@@ -140,6 +148,10 @@ class ControlGains:
     abstract).  k_v_local exceeds the friction bound α = 2.5 of the paper's f_i (Section IV), so that the
     anti-damping part of f_i cannot sustain a limit cycle around the grasp point while α̂ is still small;
     it is per body: a robots-object team (friction bounds add up) uses k_v_local × (1 + members).
+    alpha_max: the design friction bound ᾱ per body (:data:`DESIGN_ALPHA_MAX`); every controller starts its
+    friction estimate at the bound of its entity, α̂(0) = max(alpha_hat0, n ᾱ) for n bodies (a robot: 1, a
+    robots-object team: 1 + members), which keeps the velocity loop damped against any friction with α ≤ ᾱ per
+    body (mrodrake.control.adaptive); 0 gives the paper's α̂(0) = alpha_hat0.
     """
 
     k1: PosNum = 0.01
@@ -154,6 +166,7 @@ class ControlGains:
     alpha_hat0: NonNegNum = 0.0
     k1_local: PosNum = 0.25
     k_v_local: PosNum = 4.0
+    alpha_max: NonNegNum = DESIGN_ALPHA_MAX
 
 
 @dataclass(frozen=True, config=_CFG)
@@ -346,10 +359,13 @@ def parse_typed(text: str, source: str, adapter: TypeAdapter, top_level: str) ->
     return value, where
 
 
-def parse_scenario(text: str, source: str = "<scenario>") -> Scenario:
-    """Parse and fully validate scenario YAML text; raise UserError naming the file line and field."""
+def parse_scenario(text: str, source: str = "<scenario>", warnings: list[str] | None = None) -> Scenario:
+    """Parse and fully validate scenario YAML text; raise UserError naming the file line and field.
+    ``warnings``: a list to append design-range warnings to (:func:`design_range_warnings`)."""
     scenario, where = parse_typed(text, source, _ADAPTER, "name, workspace, regions, ...")
     check_scenario(scenario, where)
+    if warnings is not None:
+        warnings.extend(design_range_warnings(scenario, where))
     return scenario
 
 
@@ -363,9 +379,9 @@ def read_text(path: str | Path) -> str:
         raise UserError(f"{path}: cannot read: {e}") from None
 
 
-def load_scenario(path: str | Path) -> Scenario:
-    """Read a scenario YAML file and validate it (see :func:`parse_scenario`)."""
-    return parse_scenario(read_text(path), source=str(path))
+def load_scenario(path: str | Path, warnings: list[str] | None = None) -> Scenario:
+    """Read a scenario YAML file and validate it (see :func:`parse_scenario`; ``warnings`` likewise)."""
+    return parse_scenario(read_text(path), source=str(path), warnings=warnings)
 
 
 def scenario_from_dict(data: dict[str, Any], source: str = "<dict>") -> Scenario:
@@ -506,3 +522,25 @@ def check_scenario(s: Scenario, where: Where | None = None) -> None:
     _check_geometry(s, where)
     _check_initial(s, where)
     _check_task(s, where)
+
+
+def design_range_warnings(s: Scenario, where: Where | None = None) -> list[str]:
+    """One line ``<file>:<line>: <field path>: ... outside the design range ...`` per true parameter outside the
+    design range of the controllers (:data:`DESIGN_ALPHA_MAX`, :data:`DESIGN_MASS_RATIO`): not an error, the
+    plants simulate any positive mass and friction, but the controllers' guarantees assume the range."""
+    where = where or Where("<scenario>", None)
+    c = s.control
+    lo, hi = c.m_hat0 / DESIGN_MASS_RATIO, c.m_hat0 * DESIGN_MASS_RATIO
+    out = []
+    for group in ("robots", "objects"):
+        for i, b in enumerate(getattr(s, group)):
+            if not lo <= b.mass <= hi:
+                out.append(f"{where((group, i, 'mass'))}: {b.mass:g} kg outside the design range [{lo:g}, {hi:g}] kg "
+                           f"of the controllers (m̂_0/{DESIGN_MASS_RATIO:g} to {DESIGN_MASS_RATIO:g} m̂_0, "
+                           f"m̂_0 = control.m_hat0 = {c.m_hat0:g} kg)")
+            alpha = b.friction.alpha_bound
+            if alpha > c.alpha_max:
+                out.append(f"{where((group, i, 'friction', 'scale'))}: friction bound α = {alpha:g} ({b.friction.model} "
+                           f"model, scale {b.friction.scale:g}) outside the design range α ≤ {c.alpha_max:g} per body "
+                           f"of the controllers (control.alpha_max)")
+    return out

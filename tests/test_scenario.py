@@ -186,3 +186,26 @@ def test_deeply_nested_task_formulas():
     data["task"]["formula"] = "(" * 3000 + "F G o1_p3 & G F home" + ")" * 3000
     _load(data)
     _reject(lambda d: d["task"].update(formula="X " * 300 + "home"), "task.formula:203:", "nested deeper than 200")
+
+
+def test_cli_validate_warns_outside_the_design_range(tmp_path):
+    """True masses / frictions outside the controllers' design range (scenario.DESIGN_MASS_RATIO, control.alpha_max)
+    are warnings on stderr, not errors: the file validates and the exit status stays 0."""
+    from mrodrake.scenario import design_range_warnings
+
+    assert design_range_warnings(load_scenario(SCEN / "case_study_1.yaml")) == []
+    text = (SCEN / "tiny.yaml").read_text()
+    text = text.replace("{name: r2, mass: 1.2,", "{name: r2, mass: 3.0,")
+    text = text.replace("friction: {model: viscous, scale: 0.5}", "friction: {model: paper, scale: 2.6}")
+    path = tmp_path / "wide.yaml"
+    path.write_text(text)
+    res = _cli("validate", str(path))
+    assert res.returncode == 0 and "ok" in res.stdout
+    lines = res.stderr.strip().splitlines()
+    assert len(lines) == 2 and all(line.startswith(f"warning: {path}:") for line in lines), res.stderr
+    assert "robots[1].mass: 3 kg outside the design range [0.1, 2.5] kg" in lines[0]
+    assert "objects[0].friction.scale: friction bound α = 5.2" in lines[1] and "outside the design range" in lines[1]
+    # a scenario that declares a wider friction design bound (its controllers start α̂ there) gets no warning
+    path.write_text(text + "control: {alpha_max: 6.0}\n")
+    res = _cli("validate", str(path))
+    assert res.returncode == 0 and "friction" not in res.stderr and "robots[1].mass" in res.stderr

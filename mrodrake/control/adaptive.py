@@ -27,6 +27,32 @@ c(x) = q^{-1/2} ∈ (0, 1], so χ̇ = J_H v_d = −c ∇φ still descends φ, an
 the term k_φ ∇φᵀ J_H v_d becomes −k_φ c ‖∇φ‖² ≤ 0 while the cross terms are cancelled by −k_φ J_Hᵀ∇φ as
 before.  ``v_max = inf`` recovers the paper's law exactly.
 
+Initial friction estimate at the design bound (our choice, issue 16; README deviations).  Assumption 1 leaves α
+unknown; the controllers are designed for a known bound ᾱ per body (``alpha_max``, scenario
+``control.alpha_max``), so an entity of n bodies (a robot: n = 1; an object and its team A: n = 1 + |A|) has
+α ≤ n ᾱ (α_A,j = Σ of the bodies' α).  The estimate starts there, α̂(0) = max(α̂_0, n ᾱ)
+(:meth:`AdaptiveGains.initial_estimates`); the law and the adaptation are the paper's, only their free initial
+condition is fixed.  With W = k_φ φ + m/2 ‖e_v‖² + m̃²/(2 k_m) (the paper's V without its α̃ term), the
+paper's steps (‖f‖ ≤ α‖ẋ‖, ẋ = e_v + v_d, α‖e_v‖‖v_d‖ ≤ α/2 (‖e_v‖² + ‖v_d‖²)) give
+
+    Ẇ = −k_φ c ‖∇φ‖² − (k_v + 3/2 α̂) ‖e_v‖² − e_vᵀ f  ≤  −k_φ c ‖∇φ‖² − (k_v + 3/2 (α̂ − α)) ‖e_v‖² + α/2 ‖v_d‖²,
+
+and α̂ is non-decreasing, so α̂(t) ≥ α̂(0) ≥ n ᾱ ≥ α gives, for all t ≥ 0 and every true (m, α) with α ≤ n ᾱ,
+
+    Ẇ ≤ −k_v ‖e_v‖² − k_φ c ‖∇φ‖² + α/2 ‖v_d‖²                                 (gain condition α̂(0) ≥ α)
+
+— the paper's final inequality, now without drawing on the α̃ term.  In V = W + 3/(4 k_α) α̃² that term is an
+energy reserve 3 α̃(0)²/(4 k_α) = 75 α² for α̂(0) = 0, k_α = 0.01 (12 500 for a team with α = 12.9: ‖e_v‖ up
+to 100 m/s allowed) which the friction moves into e_v while α̂ < α: wherever the anti-damping part of the
+paper's f (up to α‖ẋ‖ at low speed) exceeds k_v + 3/2 α̂, e_v grows like exp((anti-damping − k_v − 3/2 α̂) t/m).
+With randomized true parameters that made whole missions diverge (speeds 10-17 m/s, the entity crossed a barrier
+band within one step and left the region the map resolves).  Also, with K = k_v + 3/2 α̂ ≥ k_v + 3/2 α the
+velocity-error loop m ė_v = −K e_v − f + (m̂ − m) v̇_d − k_φ J_Hᵀ∇φ is contracting and, up to its last two terms,
+‖e_v‖ ≤ max(‖e_v(0)‖, α v_max / (K − α)) < max(‖e_v(0)‖, 2 v_max): speeds stay below 3 v_max.
+The residual α/2 ‖v_d‖² is the paper's (dominated by k_φ c ‖∇φ‖² when k_φ ≥ α/2 · c ‖J_H⁻¹‖², the paper's
+k_φ > α/2 for ‖J_H⁻¹‖ ≤ 1); with v_d saturated it is at most α v_max²/2.  ``alpha_max = 0`` (the
+:class:`AdaptiveGains` default) is the paper's law with α̂(0) = α̂_0.
+
 Barrier regions (our generalisation, :class:`LocalBarrierNavigationFunction`): one region of influence τ_ℓ
 per point obstacle and τ_0 for the unit circle, each chosen by Proposition 1's rule from that barrier's own
 neighbourhood, instead of one τ for the whole map.  The start is kept outside every region as well.
@@ -63,7 +89,8 @@ def circle_radius(pw_map) -> float:
 
 @dataclass(frozen=True)
 class AdaptiveGains:
-    """k_φ, k_v, k_m, k_α of the control and adaptation laws and the initial estimates m̂(0), α̂(0)."""
+    """k_φ, k_v, k_m, k_α of the control and adaptation laws, the initial estimates m̂_0, α̂_0 and the design
+    friction bound ᾱ per body (``alpha_max``; 0: none, the paper's law with α̂(0) = α̂_0)."""
 
     k_phi: float = 1.0
     k_v: float = 1.0
@@ -71,11 +98,20 @@ class AdaptiveGains:
     k_alpha: float = 0.01
     m_hat0: float = 0.5
     alpha_hat0: float = 0.0
+    alpha_max: float = 0.0
 
     @classmethod
     def from_scenario(cls, control) -> "AdaptiveGains":
         """From the scenario's ``control`` section (:class:`mrodrake.scenario.ControlGains`)."""
-        return cls(control.k_phi, control.k_v, control.k_m, control.k_alpha, control.m_hat0, control.alpha_hat0)
+        return cls(control.k_phi, control.k_v, control.k_m, control.k_alpha, control.m_hat0, control.alpha_hat0,
+                   control.alpha_max)
+
+    def initial_estimates(self, bodies: int = 1) -> tuple[float, float]:
+        """(m̂(0), α̂(0)) of an entity of ``bodies`` bodies: (m̂_0, max(α̂_0, bodies · ᾱ)) (module docstring:
+        α̂(0) ≥ α for every true friction of the design range makes the velocity-error loop contracting)."""
+        if bodies < 1:
+            raise ValueError(f"an entity has at least one body, got {bodies}")
+        return float(self.m_hat0), max(float(self.alpha_hat0), int(bodies) * float(self.alpha_max))
 
 
 def navigation_input(J: np.ndarray, grad_phi: np.ndarray, vdot_d: np.ndarray, e_v: np.ndarray,

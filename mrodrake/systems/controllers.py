@@ -10,8 +10,9 @@ bundled in a precomputed :class:`~mrodrake.control.adaptive.NavigationTask`.  A 
 either at construction (single-transition use: the ``task`` port stays unconnected) or per context from its
 abstract ``task`` input (a :class:`TaskCommand`), which a supervisor drives: ``None`` disables the
 controller (zero inputs, frozen estimates, so idle controllers do not drift), and a new *episode* resets the
-estimates to the task's m̂(0), α̂(0) at the start of the next step (a per-step unrestricted update on the
-controller's own state), while a new task within the same episode keeps them.  So one controller per robot
+estimates to the task's m̂(0), α̂(0) (``gains.initial_estimates(bodies)``: α̂(0) at the design bound of the
+entity's bodies, 1 for a robot, 1 + members for a team) at the start of the next step (a per-step
+unrestricted update on the controller's own state), while a new task within the same episode keeps them.  So one controller per robot
 (and per team used by a plan) can stay wired for a whole mission while the supervisor only swaps tasks.
 
 One cache entry evaluates the law (map, φ, v_d, v̇_d) once per context change; the outputs and the
@@ -47,12 +48,13 @@ class _EpisodeBox:
 class _AdaptiveController(LeafSystem):
     """Shared part: estimates state, ``state``/``task`` inputs, cached law, ``estimates`` output."""
 
-    def __init__(self, task: NavigationTask | None, gains: AdaptiveGains | None, name: str):
+    def __init__(self, task: NavigationTask | None, gains: AdaptiveGains | None, name: str, bodies: int = 1):
         super().__init__()
         self.set_name(name)
         self._task = task
+        self.bodies = int(bodies)
         g = gains if gains is not None else (task.gains if task is not None else AdaptiveGains())
-        self.DeclareContinuousState(BasicVector([g.m_hat0, g.alpha_hat0]))
+        self.DeclareContinuousState(BasicVector(list(g.initial_estimates(self.bodies))))
         self.state_port = self.DeclareVectorInputPort("state", 4)
         self._command = None if task is None else TaskCommand(task, 0)
         self.task_port = self.DeclareAbstractInputPort("task", AbstractValue.Make(self._command))
@@ -86,7 +88,7 @@ class _AdaptiveController(LeafSystem):
             return EventStatus.DidNothing()  # leaves the context (and its caches) untouched
         state.get_mutable_abstract_state(int(self._box_index)).set_value(_EpisodeBox(episode))
         if cmd is not None:
-            state.get_mutable_continuous_state().SetFromVector([cmd.task.gains.m_hat0, cmd.task.gains.alpha_hat0])
+            state.get_mutable_continuous_state().SetFromVector(list(cmd.task.gains.initial_estimates(self.bodies)))
         return EventStatus.Succeeded()
 
     def set_estimates(self, context, m_hat: float, alpha_hat: float) -> None:
@@ -140,7 +142,7 @@ class TransportController(_AdaptiveController):
             raise ValueError(f"members must be distinct and non-empty, got {members}")
         if task is not None and len(task.cf) != len(members):
             raise ValueError(f"task has {len(task.cf)} load-sharing coefficients for {len(members)} members")
-        super().__init__(task, gains, name)
+        super().__init__(task, gains, name, bodies=1 + len(members))
         self.members = members
         self.u_port = self.DeclareVectorOutputPort("u", 2, self.CalcU, prerequisites_of_calc=self._u_prereqs)
         self.member_u_ports = [
