@@ -78,14 +78,14 @@ def check_power(ts: TransitionSystem, nba: NBA) -> None:
     stuck = immovable_objects(ts)
     if not stuck:
         return
-    if not useful_states(prune_nba(nba, ts)):
+    if not useful_states(prune_nba(nba, ts, transit=True)):
         return  # unsatisfiable for another reason; the planner reports it
     N = ts.N
     init = ts.initial
 
     def empty_with(js) -> bool:
         fixed = {N + j: init[N + j] for j in js}
-        return not useful_states(prune_nba(nba, ts, fixed))
+        return not useful_states(prune_nba(nba, ts, fixed, transit=True))
 
     if not empty_with(stuck):
         return
@@ -142,7 +142,7 @@ def solve_exact(ts: TransitionSystem, nba: NBA, relevant: int,
     module docstring); UserError when the task is unsatisfiable."""
     t0 = time.perf_counter()
     check_power(ts, nba)
-    pruned = prune_nba(nba, ts)
+    pruned = prune_nba(nba, ts, transit=True)
     useful = useful_states(pruned)
     stats: dict = {"nba_states": nba.num_states, "nba_useful_states": len(useful)}
     if nba.initial not in useful:

@@ -453,7 +453,7 @@ class Stylus:
                  p_rand: float | None = None, p_new: float | None = None, max_active_suffix: int = 4,
                  suffix_budget: int = 1000):
         self.ts = ts
-        self.nba = prune_nba(nba, ts)
+        self.nba = prune_nba(nba, ts, transit=True)
         self.words = ExecutedWords(ts, self.nba, relevant)
         self.p_rand = ts.scenario.planning.p_rand if p_rand is None else p_rand
         self.p_new = ts.scenario.planning.p_new if p_new is None else p_new
@@ -502,7 +502,7 @@ class Stylus:
             out = []
             for rp, rn in self.return_cubes.get(f, ()):
                 c = (pos | rp, neg | rn)
-                if c not in out and cube_infeasibility(self.ts, c[0], c[1]) is None:
+                if c not in out and cube_infeasibility(self.ts, c[0], c[1], transit=True) is None:
                     out.append(c)
             self._closing[key] = out
         return out
