@@ -1,7 +1,8 @@
 """The ``mrodrake`` command line: validate, ts, ltl2nba, plan, run, campaign, bench.
 
-User errors print ``error: <one line>`` (plus a caret line for formula errors) and exit with status 2;
-Ctrl-C exits with status 130 without a traceback.
+User errors print ``error: <one line>`` (plus a caret line for formula errors) and exit with status 2
+(status 3 when a planner ran out of budget without deciding satisfiability); Ctrl-C exits with status 130
+without a traceback.
 """
 
 from __future__ import annotations
@@ -142,7 +143,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"error: {e}", file=sys.stderr)
         if e.detail:
             print(e.detail, file=sys.stderr)
-        return 2
+        return getattr(e, "exit_status", 2)
     except KeyboardInterrupt:
         print("interrupted", file=sys.stderr)
         return 130

@@ -31,7 +31,7 @@ from scipy.sparse.csgraph import connected_components, dijkstra
 from mrodrake.errors import UserError
 from mrodrake.logic.nba import NBA
 from mrodrake.planning.product import Product, prune_nba, useful_states
-from mrodrake.ts import TransitionSystem
+from mrodrake.ts import ExplicitTS, TransitionSystem
 
 
 # ---------------------------------------------------------------------------------------------- power
@@ -137,9 +137,9 @@ def _path(pred: np.ndarray, src: int, dst: int) -> list[int]:
 
 
 def solve_exact(ts: TransitionSystem, nba: NBA, relevant: int,
-                progress: Callable[[str], None] | None = None) -> ExactResult:
+                progress: Callable[[str], None] | None = None, ets: ExplicitTS | None = None) -> ExactResult:
     """Optimal prefix-suffix plan on the executed-word semantics (``relevant``: the task's AP_φ mask; see the
-    module docstring); UserError when the task is unsatisfiable."""
+    module docstring); UserError when the task is unsatisfiable.  ``ets``: the explicit TS if already built."""
     t0 = time.perf_counter()
     check_power(ts, nba)
     pruned = prune_nba(nba, ts, transit=True)
@@ -152,7 +152,8 @@ def solve_exact(ts: TransitionSystem, nba: NBA, relevant: int,
     product = Product(ts, small, relevant)
     if progress:
         progress("building the transition system")
-    ets = ts.build()
+    if ets is None:
+        ets = ts.build()
     if progress:
         progress("building the product")
     ep = product.build(ets)

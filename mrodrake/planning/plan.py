@@ -52,12 +52,13 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable, Sequence
 
-from mrodrake.errors import UserError
+from mrodrake.errors import NoPlanFound, UserError
 from mrodrake.logic.ltl import Formula, parse
 from mrodrake.logic.nba import NBA
 from mrodrake.logic.translate import translate
+from mrodrake.planning.decide import decide
 from mrodrake.planning.exact import check_power, solve_exact
-from mrodrake.planning.semantics import ExecutedWords, check_plan_words, relevant_mask
+from mrodrake.planning.semantics import ExecutedWords, relevant_mask, words_for
 from mrodrake.planning.stylus import Stylus
 from mrodrake.scenario import Scenario, load_scenario
 from mrodrake.ts import Action, Grasp, Navigate, Release, State, TransitionSystem, Transport
@@ -162,7 +163,7 @@ class Plan:
                 raise PlanVerificationError(f"run state {k + 1} is not a valid TS state")
             if not 0 <= q < nba.num_states:
                 raise PlanVerificationError(f"run state {k + 1}: NBA state {q} out of range")
-        words = ExecutedWords(ts, nba, relevant_mask(ts, formula))
+        words = words_for(ts, nba, relevant_mask(ts, formula))
         for step, part, i, j, a, b, acts, cost in self.steps():
             why = ts.check_transition(a[0], b[0])
             if why is not None:
@@ -180,7 +181,7 @@ class Plan:
         if not any(q in nba.accepting for _, q in self.suffix):
             raise PlanVerificationError("the suffix visits no accepting NBA state")
         steps = [(a[0], b[0], acts) for _, _, _, _, a, b, acts, _ in self.steps()]
-        if not check_plan_words(ts, formula, steps, len(self.prefix)):
+        if not words.check_plan(formula, steps, len(self.prefix)):
             raise PlanVerificationError("some word that executing the plan can produce violates the formula")
 
     # ------------------------------------------------------------------------------------ JSON
@@ -350,8 +351,10 @@ def plan_scenario(scenario, planner: str = "stylus", seed: int | None = None, it
 
     ``planner="stylus"``: STyLuS* with ``seed`` (default ``planning.seed``) for ``iterations`` (default
     ``planning.iterations``) or ``time_limit`` seconds; ``"exact"``: optimal plan on the explicit product.
-    Both plan on the executed-word semantics.  Unsatisfiable tasks and objects no team can move raise a
-    one-line UserError.
+    Both plan on the executed-word semantics.  Before STyLuS* samples, :func:`~mrodrake.planning.decide.decide`
+    tries to prove the task unsatisfiable (relaxations; the exact search when the product is small, whose
+    plan is returned if STyLuS* finds none).  Unsatisfiable tasks and objects no team can move raise a
+    one-line UserError; a budget that runs out undecided raises NoPlanFound (a UserError).
     """
     if not isinstance(scenario, Scenario):
         scenario = load_scenario(scenario)
@@ -365,15 +368,27 @@ def plan_scenario(scenario, planner: str = "stylus", seed: int | None = None, it
     ts = TransitionSystem(scenario)
     formula, nba, words = task_words(scenario, ts)
     check_power(ts, nba)
+    decision = None
     if planner == "exact":
         res = solve_exact(ts, nba, words.relevant,
                           progress=(lambda msg: progress({"message": msg})) if progress else None)
         used_seed = None
     else:
+        if progress:
+            progress({"message": "deciding satisfiability"})
+        decision = decide(ts, nba, words.relevant)
         used_seed = scenario.planning.seed if seed is None else int(seed)
         its = scenario.planning.iterations if iterations is None else int(iterations)
-        res = Stylus(ts, nba, words.relevant, seed=used_seed).run(its, time_limit=time_limit, progress=progress)
+        try:
+            res = Stylus(ts, nba, words.relevant, seed=used_seed).run(its, time_limit=time_limit, progress=progress)
+        except NoPlanFound as e:
+            if decision.exact is None:
+                raise NoPlanFound(f"{e}; {decision.undecided}") from None
+            res, planner, used_seed = decision.exact, "exact", None
+            res.stats["stylus"] = f"{e}; the exact planner found this plan"
     stats = dict(res.stats)
+    if decision is not None:
+        stats["decide"] = decision.stats
     if getattr(res, "history", None):
         stats["cost_history"] = [[round(t, 4), it, c] for t, it, c in res.history]
     stats["nba_states"] = nba.num_states

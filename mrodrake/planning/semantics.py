@@ -324,6 +324,11 @@ class ExecutedWords:
             common &= T
         return common
 
+    def check_plan(self, formula: Formula, steps: Sequence[tuple[State, State, Sequence[Action]]],
+                   loop_start: int) -> bool:
+        """:func:`check_plan_words` of a lasso of steps (source, target, actions in execution order)."""
+        return check_plan_words(self.ts, formula, steps, loop_start)
+
     def step_words(self, s: State, t: State, order: Sequence[Action]) -> Iterator[list[int]]:
         """Every word (projected letters) that executing s → t in ``order`` may produce."""
         m0 = self.ts.label_mask(s) & self.relevant
@@ -394,7 +399,14 @@ def check_plan_words(ts: TransitionSystem, formula: Formula, steps: Sequence[tup
     graph times the NBA of ¬φ, translated afresh: independent of the planner's NBA run.)"""
     relevant = relevant_mask(ts, formula)
     edges, n = plan_word_graph(ts, relevant, steps, loop_start)
-    neg = translate(Not(formula)).with_ap(ts.propositions)
+    return words_satisfy(ts.propositions, formula, edges, n)
+
+
+def words_satisfy(propositions: Sequence[str], formula: Formula, edges: Sequence[tuple[int, int, int]], n: int,
+                  start: int = 0) -> bool:
+    """Does every infinite path of the word graph (``n`` nodes, edges (u, v, letter)) from ``start`` satisfy
+    ``formula``?  (Model check against a fresh NBA of ¬φ.)"""
+    neg = translate(Not(formula)).with_ap(propositions)
     P = neg.num_states
     rows, cols = [], []
     for u, v, letter in edges:
@@ -405,7 +417,7 @@ def check_plan_words(ts: TransitionSystem, formula: Formula, steps: Sequence[tup
     size = n * P
     g = csr_matrix((np.ones(len(rows), dtype=np.int8), (rows, cols)), shape=(size, size))
     reach = np.zeros(size, dtype=bool)
-    reach[breadth_first_order(g, neg.initial, directed=True, return_predecessors=False)] = True
+    reach[breadth_first_order(g, start * P + neg.initial, directed=True, return_predecessors=False)] = True
     _, comp = connected_components(g, directed=True, connection="strong")
     for x in np.flatnonzero(reach):
         if int(x) % P not in neg.accepting:
@@ -415,3 +427,69 @@ def check_plan_words(ts: TransitionSystem, formula: Formula, steps: Sequence[tup
         if np.any(same[g.indices[lo:hi]]):  # x lies on a cycle of its component
             return False
     return True
+
+
+class SourceWords:
+    """The paper's reading (one letter per step: the source state's label, projected on AP_φ) with the
+    interface of :class:`ExecutedWords`, for transition systems whose steps pass through no other label
+    (:class:`~mrodrake.planning.graph.GraphTS`)."""
+
+    def __init__(self, ts, nba: NBA, relevant: int):
+        if tuple(nba.ap) != tuple(ts.propositions):
+            raise ValueError("the NBA must be over the TS propositions (use nba.with_ap(ts.propositions))")
+        self.ts, self.nba, self.relevant = ts, nba, int(relevant)
+        self.Q = nba.num_states
+        self._matrix: dict[int, np.ndarray] = {}
+
+    def letter(self, s: State) -> int:
+        return self.ts.label_mask(s) & self.relevant
+
+    def delta(self, S: int, letter: int) -> int:
+        out, q = 0, 0
+        while S >> q:
+            if S >> q & 1:
+                for d in self.nba.successors(q, letter):
+                    out |= 1 << d
+            q += 1
+        return out
+
+    def matrix_for(self, mask: int, sig: tuple = ()) -> np.ndarray:
+        M = self._matrix.get(mask)
+        if M is None:
+            M = np.zeros((self.Q, self.Q), dtype=bool)
+            for q in range(self.Q):
+                M[q, self.nba.successors(q, mask)] = True
+            self._matrix[mask] = M
+        return M
+
+    def matrix(self, s: State, t: State) -> np.ndarray:
+        return self.matrix_for(self.letter(s))
+
+    def rows(self, s: State, t: State, qs) -> np.ndarray:
+        return self.matrix_for(self.letter(s))[qs]
+
+    def visible(self, X: np.ndarray, Y) -> np.ndarray:
+        return np.zeros(len(X), dtype=bool)
+
+    def successors(self, q: int, s: State, t: State) -> dict[int, tuple]:
+        acts = self.ts.actions(s, t)
+        return {d: acts for d in self.nba.successors(q, self.letter(s))}
+
+    def order(self, s: State, q: int, t: State, q2: int) -> tuple | None:
+        return self.ts.actions(s, t) if q2 in self.nba.successors(q, self.letter(s)) else None
+
+    def reached(self, S: int, s: State, t: State, order: Sequence) -> int:
+        return self.delta(S, self.letter(s))
+
+    def check_plan(self, formula: Formula, steps: Sequence[tuple[State, State, Sequence]], loop_start: int) -> bool:
+        """Does the lasso of source labels satisfy ``formula``?"""
+        n = len(steps)
+        edges = [(k, k + 1 if k + 1 < n else loop_start, self.ts.label_mask(s) & relevant_mask(self.ts, formula))
+                 for k, (s, _, _) in enumerate(steps)]
+        return words_satisfy(self.ts.propositions, formula, edges, n)
+
+
+def words_for(ts, nba: NBA, relevant: int):
+    """The word semantics of a transition system: :class:`SourceWords` for those that read source labels
+    (``reads_source_label``, the graph TS), else :class:`ExecutedWords`."""
+    return (SourceWords if getattr(ts, "reads_source_label", False) else ExecutedWords)(ts, nba, relevant)

@@ -47,7 +47,7 @@ from typing import Callable
 
 import numpy as np
 
-from mrodrake.errors import UserError
+from mrodrake.errors import NoPlanFound, UserError
 from mrodrake.planning.exact import blocked_note
 from mrodrake.logic.nba import NBA
 from mrodrake.planning.product import (CubeGoal, accepting_on_cycle, cube_goal, cube_infeasibility,
@@ -664,9 +664,9 @@ class Stylus:
                  "suffix_nodes": sum(t.num_nodes for t in suffix.values()),
                  "sampler": dict(self.sampler.stats)}
         if best[1] < 0:
-            raise UserError(f"no plan found within {it} iterations and {elapsed:.1f} s (STyLuS* is "
-                            "probabilistically complete: raise --iterations or --time-limit, or use --planner "
-                            "exact to decide satisfiability)" + blocked_note(ts))
+            raise NoPlanFound(f"no plan found within {it} iterations and {elapsed:.1f} s; satisfiability unknown "
+                              "(STyLuS* is probabilistically complete: raise --iterations or --time-limit)"
+                              + blocked_note(ts))
         _, a, v = best
         prefix_nodes = pre.path(a)[:-1]
         tree = suffix[a]
