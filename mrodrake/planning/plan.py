@@ -53,12 +53,14 @@ from pathlib import Path
 from typing import Callable, Sequence
 
 from mrodrake.errors import NoPlanFound, UserError
-from mrodrake.logic.ltl import Formula, parse
+from mrodrake.logic.ltl import Formula, atoms, parse
 from mrodrake.logic.nba import NBA
 from mrodrake.logic.translate import translate
-from mrodrake.planning.decide import decide
-from mrodrake.planning.exact import check_power, solve_exact
-from mrodrake.planning.semantics import ExecutedWords, relevant_mask, words_for
+from mrodrake.planning.decide import EXACT_BOUND, decide
+from mrodrake.planning.exact import check_power, solve_exact, solve_exact_graph
+from mrodrake.planning.graph import GraphTS, load_graph_ts
+from mrodrake.planning.graph_stylus import GraphStrategy
+from mrodrake.planning.semantics import ExecutedWords, SourceWords, relevant_mask, words_for
 from mrodrake.planning.stylus import Stylus
 from mrodrake.scenario import Scenario, load_scenario
 from mrodrake.ts import Action, Grasp, Navigate, Release, State, TransitionSystem, Transport
@@ -397,4 +399,59 @@ def plan_scenario(scenario, planner: str = "stylus", seed: int | None = None, it
     plan = Plan.from_runs(ts, scenario.name, str(formula), planner, used_seed, res.prefix, res.suffix, words,
                           stats)
     plan.verify(ts, nba, formula)
+    return plan
+
+
+def graph_task_nba(ts: GraphTS, formula: str | None = None) -> tuple[Formula, NBA]:
+    """(formula, NBA over ts.propositions) of a graph task; UserError for atoms that are not propositions."""
+    f = parse(ts.scenario.formula if formula is None else formula, source="task")
+    unknown = sorted(atoms(f) - set(ts.propositions))
+    if unknown:
+        raise UserError(f"task: unknown proposition '{unknown[0]}' (propositions: {', '.join(ts.propositions)})")
+    return f, translate(f).with_ap(ts.propositions)
+
+
+def plan_graph(ts, formula: str | None = None, planner: str = "stylus", seed: int | None = None,
+               iterations: int | None = None, time_limit: float | None = None,
+               progress: Callable[[dict], None] | None = None) -> Plan:
+    """Plan a multi-robot graph task (a :class:`~mrodrake.planning.graph.GraphTS` or a task file) and return
+    the verified plan; the NBA reads source labels.  ``planner`` and the budget as in :func:`plan_scenario`;
+    the default planner first decides small products exactly (at most
+    :data:`~mrodrake.planning.decide.EXACT_BOUND` joint states × NBA states) and returns that plan if
+    STyLuS* finds none."""
+    if not isinstance(ts, GraphTS):
+        ts = load_graph_ts(ts)
+    if planner not in ("stylus", "exact"):
+        raise UserError(f"--planner: unknown planner '{planner}' (expected 'stylus' or 'exact')")
+    if iterations is not None and iterations <= 0:
+        raise UserError(f"--iterations: must be > 0, got {iterations}")
+    if time_limit is not None and not time_limit > 0:
+        raise UserError(f"--time-limit: must be > 0, got {time_limit}")
+    t0 = time.perf_counter()
+    f, nba = graph_task_nba(ts, formula)
+    words = SourceWords(ts, nba, relevant_mask(ts, f))
+    exact = None
+    bound = math.prod(int(GraphStrategy(ts, words.relevant).reach(i).sum()) for i in range(ts.N))
+    if planner == "exact":
+        res, used_seed = solve_exact_graph(ts, nba, words.relevant), None
+    else:
+        if bound * nba.num_states <= EXACT_BOUND:
+            exact = solve_exact_graph(ts, nba, words.relevant)
+        used_seed = ts.scenario.planning.seed if seed is None else int(seed)
+        its = ts.scenario.planning.iterations if iterations is None else int(iterations)
+        try:
+            res = Stylus(ts, nba, words.relevant, seed=used_seed).run(its, time_limit=time_limit, progress=progress)
+        except NoPlanFound as e:
+            if exact is None:
+                raise NoPlanFound(f"{e}; the explicit product is too large to decide (up to {bound:.1e} joint "
+                                  f"states × {nba.num_states} NBA states)") from None
+            res, planner, used_seed = exact, "exact", None
+            res.stats["stylus"] = f"{e}; the exact planner found this plan"
+    stats = dict(res.stats)
+    if getattr(res, "history", None):
+        stats["cost_history"] = [[round(t, 4), it, c] for t, it, c in res.history]
+    stats.update(nba_states=nba.num_states, nba_edges=nba.num_edges, joint_states_bound=float(bound),
+                 total_seconds=time.perf_counter() - t0)
+    plan = Plan.from_runs(ts, ts.name, str(f), planner, used_seed, res.prefix, res.suffix, words, stats)
+    plan.verify(ts, nba, f)
     return plan

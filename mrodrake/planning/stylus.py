@@ -40,6 +40,7 @@ plan (a time limit makes the result depend on the machine's speed).
 
 from __future__ import annotations
 
+import heapq
 import math
 import time
 from dataclasses import dataclass, field
@@ -48,8 +49,9 @@ from typing import Callable
 import numpy as np
 
 from mrodrake.errors import NoPlanFound, UserError
-from mrodrake.planning.exact import blocked_note
 from mrodrake.logic.nba import NBA
+from mrodrake.planning.exact import blocked_note
+from mrodrake.planning.graph_stylus import GraphStrategy
 from mrodrake.planning.product import (CubeGoal, accepting_on_cycle, cube_goal, cube_infeasibility,
                                        cycle_distances, hop_distances, hop_distances_from, prune_nba,
                                        useful_states)
@@ -135,6 +137,91 @@ class _Transitions:
         return c
 
 
+class ObjectStrategy:
+    """TS-specific parts of STyLuS* for the multi-robot-object TS: pruning on executed words, the
+    executed-word semantics, the vectorised transition test, guard cubes as region goals
+    (:class:`~mrodrake.planning.sampler.Goal`) and the domain-aware sampler
+    (:mod:`~mrodrake.planning.sampler`).  :mod:`~mrodrake.planning.graph_stylus` has the graph TS's."""
+
+    symmetric = True  # the TS relation and χ are symmetric on valid states (see _Transitions.mask)
+    dtype = np.int16
+
+    def __init__(self, ts: TransitionSystem, relevant: int):
+        self.ts, self.relevant = ts, int(relevant)
+        self.p_rand = ts.scenario.planning.p_rand
+        self.p_new = ts.scenario.planning.p_new
+        self.transitions = _Transitions(ts)
+        self._cubes: dict[tuple[int, int], CubeGoal] = {}
+        self._dlist = ts.dist.tolist()
+        self._dscale = float(ts.dist.max()) * (ts.N + ts.M) + 1.0
+
+    def prune(self, nba: NBA) -> NBA:
+        return prune_nba(nba, self.ts, transit=True)
+
+    def words(self, nba: NBA) -> ExecutedWords:
+        return ExecutedWords(self.ts, nba, self.relevant)
+
+    def sampler(self, rng: np.random.Generator) -> SuccessorSampler:
+        return SuccessorSampler(self.ts, rng)
+
+    def cube_infeasibility(self, pos: int, neg: int) -> str | None:
+        return cube_infeasibility(self.ts, pos, neg, transit=True)
+
+    def no_plan_note(self) -> str:
+        return blocked_note(self.ts)
+
+    def cube(self, pos: int, neg: int) -> CubeGoal:
+        key = (pos, neg)
+        cg = self._cubes.get(key)
+        if cg is None:
+            cg = cube_goal(self.ts, pos, neg)
+            self._cubes[key] = cg
+        return cg
+
+    def goal(self, pos: int, neg: int, target: State | None) -> Goal | None:
+        """The regions the cube asks for (completed by ``target``'s when closing a suffix), or None."""
+        cg = self.cube(pos, neg)
+        if target is None and not cg.required and not cg.forbidden:
+            return None
+        return Goal.from_cube(cg.required, cg.forbidden, target, self.ts)
+
+    def cube_steps(self, s: State, pos: int, neg: int, target: State | None = None) -> float:
+        """Rough number of TS steps until s satisfies the cube (navigate, grasp, transport; the travel
+        distance still needed breaks ties), used to choose among the guard cubes to aim at (``target``, the
+        root of a suffix tree, is not used)."""
+        cg = self.cube(pos, neg)
+        ts = self.ts
+        N = ts.N
+        d = self._dlist
+        steps, dist = 0, 0.0
+        for e, k in cg.required.items():
+            if e < N:
+                if s[e] != k:
+                    steps += 1 + (s[ts.N + ts.M + e] >= 0)
+                    dist += d[s[e]][k]
+            else:
+                j = e - N
+                r = s[e]
+                if r != k:
+                    steps += 1
+                    dist += d[r][k]
+                    team = sum(ts.power[i] for i in range(N) if s[N + ts.M + i] == j)
+                    if team < ts.required_power[j]:
+                        near = sum(ts.power[i] for i in range(N) if s[i] == r and s[N + ts.M + i] < 0)
+                        steps += 1 if team + near >= ts.required_power[j] else 2
+        for e, mask in cg.forbidden.items():
+            if mask >> s[e] & 1 and e not in cg.required:
+                steps += 1 if e < N else 3
+        return steps + dist / self._dscale
+
+
+def strategy_for(ts, relevant: int):
+    """The STyLuS* strategy of a transition system (graph TS or multi-robot-object TS)."""
+    if getattr(ts, "reads_source_label", False):
+        return GraphStrategy(ts, relevant)
+    return ObjectStrategy(ts, relevant)
+
+
 class _Labels:
     """NBA moves per TS label, shared by all trees: label id -> bool matrix ``T[q, q']``."""
 
@@ -172,9 +259,9 @@ class _Tree:
         self.D = dist
         self.close_to = close_to
         self.Q = planner.nba.num_states
-        self.width = 2 * ts.N + ts.M
+        self.width = len(ts.initial)
         cap = 256
-        self.X = np.zeros((cap, self.width), dtype=np.int16)
+        self.X = np.zeros((cap, self.width), dtype=planner.strategy.dtype)
         self.lid = np.zeros(cap, dtype=np.int32)
         self.node_of = np.full((cap, self.Q), -1, dtype=np.int64)
         self.C = np.zeros(cap)
@@ -189,6 +276,7 @@ class _Tree:
         self.buckets: dict[float, list[int]] = {}
         self.expandable: list[int] = []
         self.closers: list[int] = []
+        self.frontier: dict[float, list[tuple[float, int]]] = {}  # per bucket: (estimated steps, node)
         self._opts: dict[int, list] = {}
         self.iterations = 0
         tid = self._add_state(root)
@@ -226,6 +314,10 @@ class _Tree:
         if h < INF:
             self.buckets.setdefault(h, []).append(v)
             self.expandable.append(v)
+            if self.p.focus:
+                opts = self.options(v)
+                if opts:
+                    heapq.heappush(self.frontier.setdefault(h, []), (min(o[0] for o in opts), v))
         if self.close_to is not None and self._closes(v):
             self.closers.append(v)
         self.p._on_new_node(self, v)
@@ -260,7 +352,7 @@ class _Tree:
         p = self.p
         tid = self.tid_of.get(s)
         n = len(self.states)
-        row = np.asarray(s, dtype=np.int16)[None, :]
+        row = np.asarray(s, dtype=self.X.dtype)[None, :]
         X = self.X[:n]
         pred = np.flatnonzero(p.trans.mask(X, s))
         if tid is None:
@@ -308,7 +400,10 @@ class _Tree:
                     continue
                 changed.append(y)
                 queue.append(y)
-        for v in dict.fromkeys(changed):  # successors of s are its predecessors (symmetric relation, χ)
+        if not p.strategy.symmetric:
+            pred = np.flatnonzero(p.trans.mask_from(s, X))
+            chi = p.trans.cost(row, X[pred])
+        for v in dict.fromkeys(changed):  # symmetric relation and χ: successors of s are its predecessors
             self._rewire_from(v, pred, chi)
 
     def _rewire_from(self, v: int, succ: np.ndarray, chi: np.ndarray) -> None:
@@ -336,7 +431,13 @@ class _Tree:
             self._reparent(y, v, w)
 
     def select(self, rng: np.random.Generator) -> int:
-        """With probability p_rand a uniform node of the minimum-distance bucket, else any expandable node."""
+        """With probability ``focus`` (strategies that set it) the node of the minimum-distance bucket with the
+        fewest estimated steps to its goal cube that was not focused on before; else with probability p_rand a
+        uniform node of that bucket, else any expandable node."""
+        if self.p.focus and rng.random() < self.p.focus:
+            heap = self.frontier.get(min(self.buckets))
+            if heap:
+                return heapq.heappop(heap)[1]
         if rng.random() < self.p.p_rand:
             bucket = self.buckets[min(self.buckets)]
             return bucket[int(rng.integers(len(bucket)))]
@@ -379,7 +480,9 @@ class _Tree:
                 if D[q2] == want:
                     for pos, neg in guard:
                         cubes.setdefault((pos, neg, q2), None)
-        opts = [(p.cube_steps(s, p.cube(pos, neg)), pos, neg, q2) for pos, neg, q2 in cubes]
+        close = self.close_to
+        opts = [(p.strategy.cube_steps(s, pos, neg, close[0] if close is not None and q2 == close[1] else None),
+                 pos, neg, q2) for pos, neg, q2 in cubes]
         self._opts[v] = opts
         return opts
 
@@ -392,13 +495,10 @@ class _Tree:
         vmin = min(o[0] for o in opts)
         best = [o for o in opts if o[0] == vmin]
         _, pos, neg, q2 = best[int(rng.integers(len(best)))]
-        cg = p.cube(pos, neg)
         target = None
         if self.close_to is not None and q2 == self.close_to[1]:
             target = self.close_to[0]
-        if target is None and not cg.required and not cg.forbidden:
-            return None
-        return Goal.from_cube(cg.required, cg.forbidden, target, p.ts)
+        return p.strategy.goal(pos, neg, target)
 
     def step(self, rng: np.random.Generator) -> None:
         self.iterations += 1
@@ -453,13 +553,15 @@ class Stylus:
                  p_rand: float | None = None, p_new: float | None = None, max_active_suffix: int = 4,
                  suffix_budget: int = 1000):
         self.ts = ts
-        self.nba = prune_nba(nba, ts, transit=True)
-        self.words = ExecutedWords(ts, self.nba, relevant)
-        self.p_rand = ts.scenario.planning.p_rand if p_rand is None else p_rand
-        self.p_new = ts.scenario.planning.p_new if p_new is None else p_new
+        self.strategy = strategy_for(ts, relevant)
+        self.nba = self.strategy.prune(nba)
+        self.words = self.strategy.words(self.nba)
+        self.p_rand = self.strategy.p_rand if p_rand is None else p_rand
+        self.p_new = self.strategy.p_new if p_new is None else p_new
         self.rng = np.random.default_rng(seed)
-        self.sampler = SuccessorSampler(ts, self.rng)
-        self.trans = _Transitions(ts)
+        self.sampler = self.strategy.sampler(self.rng)
+        self.focus = getattr(self.strategy, "focus", 0.0)
+        self.trans = self.strategy.transitions
         self.labels = _Labels(ts, self.nba)
         self.edges = self.nba.edges
         self.acc = accepting_on_cycle(self.nba)
@@ -485,9 +587,6 @@ class Stylus:
             self.d_prefix = d_acc
         self.max_active = max_active_suffix
         self.suffix_budget = suffix_budget
-        self._cubes: dict[tuple[int, int], CubeGoal] = {}
-        self._dlist = ts.dist.tolist()
-        self._dscale = float(ts.dist.max()) * (ts.N + ts.M) + 1.0
         self._new_accepting: list[int] = []
         self._reach: dict[int, list[int]] = {}
         self.prefix_tree: _Tree | None = None
@@ -502,45 +601,10 @@ class Stylus:
             out = []
             for rp, rn in self.return_cubes.get(f, ()):
                 c = (pos | rp, neg | rn)
-                if c not in out and cube_infeasibility(self.ts, c[0], c[1], transit=True) is None:
+                if c not in out and self.strategy.cube_infeasibility(c[0], c[1]) is None:
                     out.append(c)
             self._closing[key] = out
         return out
-
-    def cube_steps(self, s: State, cg: CubeGoal) -> float:
-        """Rough number of TS steps until s satisfies the cube (navigate, grasp, transport; the travel
-        distance still needed breaks ties), used to choose among the guard cubes to aim at."""
-        ts = self.ts
-        N = ts.N
-        d = self._dlist
-        steps, dist = 0, 0.0
-        for e, k in cg.required.items():
-            if e < N:
-                if s[e] != k:
-                    steps += 1 + (s[ts.N + ts.M + e] >= 0)
-                    dist += d[s[e]][k]
-            else:
-                j = e - N
-                r = s[e]
-                if r != k:
-                    steps += 1
-                    dist += d[r][k]
-                    team = sum(ts.power[i] for i in range(N) if s[N + ts.M + i] == j)
-                    if team < ts.required_power[j]:
-                        near = sum(ts.power[i] for i in range(N) if s[i] == r and s[N + ts.M + i] < 0)
-                        steps += 1 if team + near >= ts.required_power[j] else 2
-        for e, mask in cg.forbidden.items():
-            if mask >> s[e] & 1 and e not in cg.required:
-                steps += 1 if e < N else 3
-        return steps + dist / self._dscale
-
-    def cube(self, pos: int, neg: int) -> CubeGoal:
-        key = (pos, neg)
-        cg = self._cubes.get(key)
-        if cg is None:
-            cg = cube_goal(self.ts, pos, neg)
-            self._cubes[key] = cg
-        return cg
 
     def _on_new_node(self, tree: _Tree, v: int) -> None:
         if tree is self.prefix_tree and tree.n_q[v] in self.acc:
@@ -666,7 +730,7 @@ class Stylus:
         if best[1] < 0:
             raise NoPlanFound(f"no plan found within {it} iterations and {elapsed:.1f} s; satisfiability unknown "
                               "(STyLuS* is probabilistically complete: raise --iterations or --time-limit)"
-                              + blocked_note(ts))
+                              + self.strategy.no_plan_note())
         _, a, v = best
         prefix_nodes = pre.path(a)[:-1]
         tree = suffix[a]
