@@ -452,14 +452,15 @@ def graph_ts_from_networkx(graphs: Mapping[str, object], robots: Mapping[str, tu
                            weight: str = "weight", undirected: bool | None = None, self_loops: bool = True,
                            planning: GraphPlanning | None = None) -> GraphTS:
     """A :class:`GraphTS` from networkx graphs: ``graphs`` name -> (Di)Graph (weights from ``weight``, else the
-    Euclidean distance of node attributes ``pos`` = (x, y), else 1); ``robots`` name -> (graph name, initial
+    Euclidean distance of node attributes ``pos`` = (x, y) or ``x``, ``y``, else 1); ``robots`` name -> (graph name, initial
     node); ``propositions`` name -> ("all" | "any", {robot: [nodes]}).  Undirected networkx graphs give both
     directions (``undirected`` overrides)."""
     gl, index = [], {}
     for gname, g in graphs.items():
         nodes = list(g.nodes)
         vid = {v: k for k, v in enumerate(nodes)}
-        pos = {v: d.get("pos") for v, d in g.nodes(data=True)}
+        pos = {v: d.get("pos", (d["x"], d["y"]) if "x" in d and "y" in d else None)
+               for v, d in g.nodes(data=True)}
         triples = []
         for u, v, d in g.edges(data=True):
             w = d.get(weight)
@@ -478,3 +479,32 @@ def graph_ts_from_networkx(graphs: Mapping[str, object], robots: Mapping[str, tu
     except (KeyError, ValueError) as e:
         raise UserError(f"graph task: unknown graph, robot or node {e}") from None
     return GraphTS(name, names, gl, rgraph, rinit, props, planning)
+
+
+def write_graph_task(ts: GraphTS, path: str | Path) -> None:
+    """Write ``ts`` as a task file (module docstring) with one edge list per graph next to it
+    (``<stem>.<graph>.edges``: one "u v weight" line per edge, both directions listed)."""
+    path = Path(path)
+    graphs = {}
+    for k, gname in enumerate(ts.graph_names):
+        lo, hi = int(ts.offsets[k]), int(ts.offsets[k + 1])
+        sub = ts.adj[lo:hi, lo:hi].tocoo()
+        local = ts.region_names[lo:hi] if len(ts.graph_names) == 1 else [n.split(":", 1)[1] for n in ts.region_names[lo:hi]]
+        edge_file = path.with_name(f"{path.stem}.{gname}.edges")
+        edge_file.write_text("".join(f"{local[u]} {local[v]} {float(w)!r}\n" for u, v, w in zip(sub.row, sub.col, sub.data)),
+                             encoding="utf-8")
+        graphs[gname] = {"file": edge_file.name, "undirected": False, "self_loops": False, "vertices": list(local)}
+
+    def local_name(v: int) -> str:
+        name = ts.region_names[v]
+        return name if len(ts.graph_names) == 1 else name.split(":", 1)[1]
+
+    robots = [{"name": n, "graph": ts.graph_names[ts.robot_graph[i]], "initial": local_name(ts.initial[i])}
+              for i, n in enumerate(ts.robot_names)]
+    props = {p.name: {p.mode: {ts.robot_names[r]: [local_name(int(v)) for v in vs] for r, vs in p.clauses}}
+             for p in ts.predicates}
+    pl = ts.scenario.planning
+    data = {"format": FORMAT, "name": ts.name, "graphs": graphs, "robots": robots, "propositions": props,
+            "task": ts.scenario.formula,
+            "planning": {"seed": pl.seed, "iterations": pl.iterations, "p_rand": pl.p_rand, "p_new": pl.p_new}}
+    path.write_text(yaml.safe_dump(data, sort_keys=False, width=120), encoding="utf-8")
