@@ -11,9 +11,11 @@ the vectorised transition test and costs, the goal a guard cube sets and the suc
   ``any`` predicate sends its nearest robot; closing a suffix, the robots the cube leaves free head for
   their vertex in the root state.
 * **Sampler**: with probability ``p_new`` the robots with a goal take one step along a shortest path
-  (edge weights) to it and the others stay (or take a random edge without a self-loop); otherwise (and
-  when that step breaks a predicate the cube forbids, after a few repairs) every robot takes a uniformly
-  random edge, so every successor has positive probability (Kantaros & Zavlanos: 0.8 toward, as here).
+  (edge weights) to it and the others stay (or take a random edge without a self-loop); a robot whose step
+  makes a predicate the cube forbids true takes a random edge instead (a few repairs).  Otherwise each robot
+  takes a uniformly random edge with probability min(1, 4/N) and stays else, so every successor has positive
+  probability.  (The MATLAB code moves every robot at random in both modes except the goal's robots; here
+  idle robots stay, which keeps the plans' cost down, and 0.8 toward is the same.)
 """
 
 from __future__ import annotations
@@ -256,6 +258,8 @@ class GraphSampler:
         coo = adj.tocoo()
         self.loop[coo.row[coo.row == coo.col]] = True
         self.stats = {"toward": 0, "random": 0, "repaired": 0}
+        #: probability that a robot moves in a random successor: about four robots per step
+        self.p_move = min(1.0, 4.0 / max(1, self.ts.N))
 
     def random_moves(self, s: np.ndarray, robots: np.ndarray) -> np.ndarray:
         """A uniformly random out-neighbour of each of ``robots`` (its vertex when it has none)."""
@@ -265,9 +269,14 @@ class GraphSampler:
         return np.where(d > 0, self.indices[self.indptr[v] + np.minimum(pick, np.maximum(d - 1, 0))], v)
 
     def random(self, s: State) -> State:
+        """Each robot takes a uniformly random out-edge with probability ``p_move`` (always when it cannot
+        stay), else stays: every successor has positive probability."""
         self.stats["random"] += 1
         x = np.asarray(s, dtype=np.int64)
-        return tuple(int(v) for v in self.random_moves(x, np.arange(len(x))))
+        who = np.flatnonzero((self.rng.random(len(x)) < self.p_move) | ~self.loop[x])
+        t = x.copy()
+        t[who] = self.random_moves(x, who)
+        return tuple(int(v) for v in t)
 
     def toward(self, s: State, goal: GraphGoal) -> State:
         self.stats["toward"] += 1

@@ -121,6 +121,62 @@ def interleavings(cross: Sequence[Crossing]) -> Iterator[list[tuple[int, int]]]:
     yield from rec(0, [])
 
 
+class GuardTable:
+    """NBA successors of letters, for states whose guards have many cubes: the cubes as packed bit arrays
+    over the propositions they mention, evaluated at once with numpy (same answers as
+    :meth:`~mrodrake.logic.nba.NBA.successors`, which loops over the cubes one Python integer at a time)."""
+
+    #: States with more cubes than this use the packed table.
+    min_cubes = 64
+
+    def __init__(self, nba: NBA):
+        self.nba = nba
+        self._tables: dict[int, tuple | None] = {}
+
+    def _table(self, q: int):
+        if q in self._tables:
+            return self._tables[q]
+        flat = [(p, n, d) for g, d in self.nba.edges[q] for p, n in g]
+        table = None
+        if len(flat) > self.min_cubes:
+            used = 0
+            for p, n, _ in flat:
+                used |= p | n
+            bits = np.array([b for b in range(used.bit_length()) if used >> b & 1], dtype=np.int64)
+            nbytes = (used.bit_length() + 7) // 8
+            words = (len(bits) + 63) // 64
+            P = np.stack([self._pack(p & used, nbytes, bits, words) for p, _, _ in flat])
+            N = np.stack([self._pack(n & used, nbytes, bits, words) for _, n, _ in flat])
+            table = (used, nbytes, bits, words, P, N, np.array([d for _, _, d in flat], dtype=np.int64))
+        self._tables[q] = table
+        return table
+
+    @staticmethod
+    def _pack(x: int, nbytes: int, bits: np.ndarray, words: int) -> np.ndarray:
+        """The bits ``bits`` of x, packed into ``words`` 64-bit words."""
+        raw = np.unpackbits(np.frombuffer(x.to_bytes(nbytes, "little"), dtype=np.uint8), bitorder="little")
+        out = np.zeros(8 * words, dtype=np.uint8)
+        packed = np.packbits(raw[bits], bitorder="little")
+        out[:len(packed)] = packed
+        return out.view("<u8")
+
+    def successors_mask(self, q: int, letter: int) -> int:
+        """Bit mask of δ(q, letter)."""
+        table = self._table(q)
+        if table is None:
+            return sum(1 << d for d in self.nba.successors(q, letter))
+        used, nbytes, bits, words, P, N, dst = table
+        L = self._pack(letter & used, nbytes, bits, words)
+        if words == 1:
+            ok = ((P[:, 0] & ~L[0]) == 0) & ((N[:, 0] & L[0]) == 0)
+        else:
+            ok = ~((P & ~L).any(axis=1) | (N & L).any(axis=1))
+        out = 0
+        for d in np.unique(dst[ok]):
+            out |= 1 << int(d)
+        return out
+
+
 class ExecutedWords:
     """The executed-word semantics (module docstring) of a TS and an NBA over ``ts.propositions``;
     ``relevant`` is the AP_φ mask (:func:`relevant_mask`).  All queries are cached; every answer is a pure
@@ -140,6 +196,7 @@ class ExecutedWords:
         n_ent = ts.N + ts.M
         self.entity_region = np.array([[bool(self.relevant >> (e * K + k) & 1) for k in range(K)]
                                        for e in range(n_ent)], dtype=bool).reshape(n_ent, K)
+        self.guards = GuardTable(nba)
         self._succ_bits: dict[int, list[int]] = {}
         self._delta: dict[tuple[int, int], int] = {}
         self._lattice: dict[tuple, tuple[frozenset, int]] = {}
@@ -155,12 +212,14 @@ class ExecutedWords:
         if out is None:
             bits = self._succ_bits.get(letter)
             if bits is None:
-                bits = [sum(1 << d for d in self.nba.successors(q, letter)) for q in range(self.Q)]
-                self._succ_bits[letter] = bits
+                bits = self._succ_bits[letter] = [-1] * self.Q  # filled per state on demand
             out, q, m = 0, 0, S
             while m:
                 if m & 1:
-                    out |= bits[q]
+                    b = bits[q]
+                    if b < 0:
+                        b = bits[q] = self.guards.successors_mask(q, letter)
+                    out |= b
                 m >>= 1
                 q += 1
             self._delta[key] = out

@@ -11,7 +11,10 @@ The product is never built.  The algorithm, as implemented here:
    to the plain distance for states that cannot reach one.
 2. **Prefix tree** rooted at ``(s0, q0)``.  Each iteration selects a node: with probability ``p_rand``
    uniformly among the expandable nodes of minimum ``h(s, q) = min_{q' ∈ δ(q, L(s))} D(q')``, else
-   uniformly among all expandable nodes.  Among the next NBA states of minimum distance it takes the
+   uniformly among all expandable nodes.  Strategies with a ``focus`` (the graph TS; object systems beyond
+   the case studies' size) first, with that probability, take the node of the minimum bucket with the fewest
+   estimated steps to its goal cube that was not taken this way before, so that a chain of steps toward a
+   goal takes about as many iterations as it has steps.  Among the next NBA states of minimum distance it takes the
    edges that decrease the distance most and, of their guard cubes, one with the fewest estimated TS
    steps from ``s`` (navigate, grasp, transport); the cube says which entities must (not) be where.  A
    TS successor of ``s`` is sampled toward that cube with probability ``p_new``, else uniformly at
@@ -34,7 +37,9 @@ is below the best plan.  A suffix tree is set aside after ``suffix_budget`` (100
 all are set aside without a plan, every budget doubles (so no candidate is abandoned for good).
 ``iterations`` counts all tree iterations; ``time_limit`` stops earlier; without a plan after
 ``iterations`` the search continues until the first plan (at most ``time_limit``, or ``extend_seconds``).
-All randomness comes from one seeded numpy Generator: the same seed and iteration budget give the same
+The TS-specific parts (pruning, word semantics, vectorised transition test and costs, goals, estimated steps,
+successor sampler) are a *strategy*: :class:`ObjectStrategy` here, :class:`~mrodrake.planning.graph_stylus.
+GraphStrategy` for multi-robot graph systems.  All randomness comes from one seeded numpy Generator: the same seed and iteration budget give the same
 plan (a time limit makes the result depend on the machine's speed).
 """
 
@@ -60,6 +65,8 @@ from mrodrake.planning.semantics import ExecutedWords
 from mrodrake.ts import State, TransitionSystem
 
 INF = math.inf
+#: Object systems with more robots + objects than this focus STyLuS*'s selection (ObjectStrategy.focus).
+FOCUS_ENTITIES = 8
 
 
 class _Transitions:
@@ -151,6 +158,9 @@ class ObjectStrategy:
         self.p_rand = ts.scenario.planning.p_rand
         self.p_new = ts.scenario.planning.p_new
         self.transitions = _Transitions(ts)
+        # beyond the case studies' size the best bucket holds hundreds of nodes and uniform picks rarely
+        # continue a chain of steps toward a goal: focus on the closest node (see _Tree.select)
+        self.focus = 0.0 if ts.N + ts.M <= FOCUS_ENTITIES else 0.8
         self._cubes: dict[tuple[int, int], CubeGoal] = {}
         self._dlist = ts.dist.tolist()
         self._dscale = float(ts.dist.max()) * (ts.N + ts.M) + 1.0
