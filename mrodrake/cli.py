@@ -130,6 +130,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("what", choices=["ts", "ltl", "plan", "control", "replay", "run"], help="what to benchmark")
     p.add_argument("--scenario", metavar="FILE", default=None,
                    help="scenario of `bench run` (default: scenarios/case_study_1.yaml)")
+    p.add_argument("--stylus-default", action="store_true",
+                   help="`bench plan`: STyLuS*'s default problem (100 robots, 1000-state random TS) instead")
+    p.add_argument("--seeds", type=int, default=None, metavar="N", help="`bench plan`: seeds per problem (default 3)")
     p.set_defaults(func=_cmd_bench)
     return parser
 

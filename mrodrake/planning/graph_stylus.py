@@ -101,6 +101,9 @@ class GraphStrategy:
         self._reach: dict[int, np.ndarray] = {}
         self._paths: dict[bytes, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
         self._goals: dict[tuple, GraphGoal | None] = {}
+        self.loops = np.zeros(ts.K, dtype=bool)
+        coo = ts.adj.tocoo()
+        self.loops[coo.row[coo.row == coo.col]] = True
         self._scale = float(np.nanmax(np.where(np.isfinite(ts.adj.data), ts.adj.data, np.nan), initial=1.0)) * ts.N + 1
 
     # ------------------------------------------------------------------------------------ NBA side
@@ -242,6 +245,10 @@ class GraphStrategy:
 
     def no_plan_note(self) -> str:
         return ""
+
+    def can_idle(self, s: State) -> bool:
+        """Is s → s a transition (a self-loop at every robot's vertex)?"""
+        return bool(self.loops[list(s)].all())
 
 
 class GraphSampler:

@@ -180,6 +180,11 @@ class ObjectStrategy:
     def no_plan_note(self) -> str:
         return blocked_note(self.ts)
 
+    @staticmethod
+    def can_idle(s: State) -> bool:
+        """Is the all-idle step s → s a transition?  (Always: every robot may stay.)"""
+        return True
+
     def cube(self, pos: int, neg: int) -> CubeGoal:
         key = (pos, neg)
         cg = self._cubes.get(key)
@@ -395,8 +400,8 @@ class _Tree:
             elif self.C[u] + c < self.C[v] - 1e-9 and u != v:
                 self._reparent(v, u, c)
                 changed.append(v)
-        # idle self-loop closure: (s, q) -> (s, q') costs nothing when q' ∈ δ(q, L(s))
-        queue = list(changed)
+        # idle self-loop closure: (s, q) -> (s, q') costs nothing when q' ∈ δ(q, L(s)) and s -> s exists
+        queue = list(changed) if p.strategy.can_idle(s) else []
         succ_rows = p.labels.succ[self.lid[tid]]
         while queue:
             v = queue.pop()
