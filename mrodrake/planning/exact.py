@@ -22,6 +22,7 @@ enough" before any search.
 from __future__ import annotations
 
 import time
+import weakref
 from dataclasses import dataclass, field
 from typing import Callable
 
@@ -60,14 +61,21 @@ def max_team_power(ts: TransitionSystem, j: int) -> tuple[float, tuple[int, ...]
     return 0.0, ()
 
 
+_IMMOVABLE: "weakref.WeakKeyDictionary[TransitionSystem, dict]" = weakref.WeakKeyDictionary()
+
+
 def immovable_objects(ts: TransitionSystem) -> dict[int, tuple[float, tuple[int, ...]]]:
-    """Objects no team can transport (Λ fails for every team that fits): j -> (max power, that team)."""
-    out = {}
-    for j in range(ts.M):
-        power, team = max_team_power(ts, j)
-        if power < ts.required_power[j]:
-            out[j] = (power, team)
-    return out
+    """Objects no team can transport (Λ fails for every team that fits): j -> (max power, that team)
+    (computed once per TS)."""
+    out = _IMMOVABLE.get(ts)
+    if out is None:
+        out = {}
+        for j in range(ts.M):
+            power, team = max_team_power(ts, j)
+            if power < ts.required_power[j]:
+                out[j] = (power, team)
+        _IMMOVABLE[ts] = out
+    return dict(out)
 
 
 def check_power(ts: TransitionSystem, nba: NBA) -> None:

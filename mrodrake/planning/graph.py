@@ -39,6 +39,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Mapping, Sequence
 
+import networkx as nx
 import numpy as np
 import scipy.sparse as sp
 import yaml
@@ -220,11 +221,8 @@ class GraphTS:
 
     # ------------------------------------------------------------------------------------ presentation
     def state_dict(self, s: State) -> dict:
-        return {"robots": {self.robot_names[i]: self._local_name(v) for i, v in enumerate(s)}, "objects": {},
+        return {"robots": {self.robot_names[i]: self.region_names[v] for i, v in enumerate(s)}, "objects": {},
                 "grasps": {}}
-
-    def _local_name(self, v: int) -> str:
-        return self.region_names[v]
 
     def state_from_dict(self, d: dict) -> State:
         index = {n: k for k, n in enumerate(self.region_names)}
@@ -282,8 +280,6 @@ def _read_graph(spec: dict, where: str, base: Path) -> tuple[list[str], list[tup
         if not path.is_file():
             raise _fail(f"{where}.file", f"no such file {path}")
         if path.suffix.lower() == ".graphml":
-            import networkx as nx
-
             try:
                 g = nx.read_graphml(path)
             except Exception as e:  # networkx raises several parser errors
@@ -419,7 +415,17 @@ def graph_ts_from_dict(data: dict, source: str = "graph task", base: Path | None
     unknown = set(pl) - {"seed", "iterations", "p_rand", "p_new"}
     if unknown:
         raise UserError(f"{source}: planning.{sorted(unknown)[0]}: unknown field")
-    planning = GraphPlanning(**{k: type(getattr(GraphPlanning, k))(v) for k, v in pl.items()})
+    values = {}
+    for k, v in pl.items():
+        kind = type(getattr(GraphPlanning, k))
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or (kind is int and not isinstance(v, int)):
+            raise UserError(f"{source}: planning.{k}: expected {'an integer' if kind is int else 'a number'}, got {v!r}")
+        values[k] = kind(v)
+    if values.get("iterations", 1) < 1 or values.get("seed", 0) < 0:
+        raise UserError(f"{source}: planning: iterations must be >= 1 and seed >= 0")
+    if not all(0 < values.get(k, 0.5) <= 1 for k in ("p_rand", "p_new")):
+        raise UserError(f"{source}: planning: p_rand and p_new must be in (0, 1]")
+    planning = GraphPlanning(**values)
     if not isinstance(data["task"], str):
         raise UserError(f"{source}: task: expected an LTL formula (text)")
     return GraphTS(str(data.get("name", Path(source).stem)), names, graphs, rgraph, rinit, props, planning, data["task"])

@@ -94,8 +94,18 @@ class _Transitions:
         """
         N, M = self.N, self.M
         n = len(X)
-        if M == 0:
-            return self.ts.steps_fit(X, s)
+        if M == 0:  # robots only: every move must be travelled, and the step must fit
+            s = np.asarray(s, dtype=np.int64).ravel()
+            ok = np.ones(n, dtype=bool)
+            moves = X[:, :N] != s[:N]
+            for i in np.flatnonzero(moves.any(axis=0)):
+                C = self.ts.connections(self.ts.robot_radius[i])
+                rows = np.flatnonzero(moves[:, i])
+                ok[rows] &= C[X[rows, i], s[i]]
+            rows = np.flatnonzero(ok)
+            if len(rows):
+                ok[rows] = self.ts.steps_fit(X[rows], s)
+            return ok
         s = np.asarray(s, dtype=np.int64).ravel()
         XR, XO, XG = X[:, :N], X[:, N : N + M], X[:, N + M :]
         sR, sO, sG = s[:N], s[N : N + M], s[N + M :]

@@ -56,6 +56,7 @@ def test_inline_task_weights_and_labels():
     ({"graphs": {"g": {"edges": [["a", "b", -1]]}}}, "graphs.g: edge a -> b: weight must be finite and >= 0"),
     ({"graphs": {"g": {"edges": [["a"]]}}}, "graphs.g.edges[0]: expected [u, v]"),
     ({"planning": {"speed": 1}}, "planning.speed: unknown field"),
+    ({"planning": {"seed": "x"}}, "planning.seed: expected an integer, got 'x'"),
     ({"colour": 1}, "colour: unknown field"),
 ])
 def test_task_file_errors_name_the_field(change, where):
