@@ -7,6 +7,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+from mrodrake.errors import UserError
+
 SCENARIOS = Path(__file__).resolve().parents[1] / "scenarios"
 
 _TS_PROBE = r"""
@@ -44,6 +46,9 @@ def bench_ts(repeats: int = 3, stream=sys.stdout) -> list[dict]:
 
 
 def run(what: str, args=None) -> int:
+    seeds = getattr(args, "seeds", None)
+    if seeds is not None and seeds < 1:
+        raise UserError(f"--seeds: must be >= 1, got {seeds}")
     if what == "ts":
         bench_ts()
     elif what == "ltl":
@@ -51,9 +56,12 @@ def run(what: str, args=None) -> int:
 
         run_ltl_benchmark()
     elif what == "plan":
-        from mrodrake.planning.bench import run_plan_benchmark
+        from mrodrake.planning.bench import run_plan_benchmark, run_stylus_default_benchmark
 
-        run_plan_benchmark(sys.stdout)
+        if getattr(args, "stylus_default", False):
+            run_stylus_default_benchmark(sys.stdout, seeds=getattr(args, "seeds", None) or 3)
+        else:
+            run_plan_benchmark(sys.stdout, seeds=getattr(args, "seeds", None) or 3)
     elif what == "control":
         from mrodrake.control.bench import run_control_benchmark
 

@@ -1,7 +1,8 @@
 """The ``mrodrake`` command line: validate, ts, ltl2nba, plan, run, campaign, bench.
 
-User errors print ``error: <one line>`` (plus a caret line for formula errors) and exit with status 2;
-Ctrl-C exits with status 130 without a traceback.
+User errors print ``error: <one line>`` (plus a caret line for formula errors) and exit with status 2
+(status 3 when a planner ran out of budget without deciding satisfiability); Ctrl-C exits with status 130
+without a traceback.
 """
 
 from __future__ import annotations
@@ -133,6 +134,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("what", choices=["ts", "ltl", "plan", "control", "replay", "run"], help="what to benchmark")
     p.add_argument("--scenario", metavar="FILE", default=None,
                    help="scenario of `bench run` (default: scenarios/case_study_1.yaml)")
+    p.add_argument("--stylus-default", action="store_true",
+                   help="`bench plan`: STyLuS*'s default problem (100 robots, 1000-state random TS) instead")
+    p.add_argument("--seeds", type=int, default=None, metavar="N", help="`bench plan`: seeds per problem (default 3)")
     p.set_defaults(func=_cmd_bench)
     return parser
 
@@ -146,7 +150,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"error: {e}", file=sys.stderr)
         if e.detail:
             print(e.detail, file=sys.stderr)
-        return 2
+        return getattr(e, "exit_status", 2)
     except KeyboardInterrupt:
         print("interrupted", file=sys.stderr)
         return 130

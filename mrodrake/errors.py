@@ -16,3 +16,9 @@ class UserError(Exception):
         else:
             self.detail = ""
         super().__init__(message)
+
+
+class NoPlanFound(UserError):
+    """A planner's budget ran out before a plan was found and satisfiability is undecided (CLI exit status 3)."""
+
+    exit_status = 3

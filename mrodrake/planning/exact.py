@@ -22,16 +22,18 @@ enough" before any search.
 from __future__ import annotations
 
 import time
+import weakref
 from dataclasses import dataclass, field
 from typing import Callable
 
 import numpy as np
+import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components, dijkstra
 
 from mrodrake.errors import UserError
 from mrodrake.logic.nba import NBA
 from mrodrake.planning.product import Product, prune_nba, useful_states
-from mrodrake.ts import TransitionSystem
+from mrodrake.ts import ExplicitTS, TransitionSystem
 
 
 # ---------------------------------------------------------------------------------------------- power
@@ -59,14 +61,21 @@ def max_team_power(ts: TransitionSystem, j: int) -> tuple[float, tuple[int, ...]
     return 0.0, ()
 
 
+_IMMOVABLE: "weakref.WeakKeyDictionary[TransitionSystem, dict]" = weakref.WeakKeyDictionary()
+
+
 def immovable_objects(ts: TransitionSystem) -> dict[int, tuple[float, tuple[int, ...]]]:
-    """Objects no team can transport (Λ fails for every team that fits): j -> (max power, that team)."""
-    out = {}
-    for j in range(ts.M):
-        power, team = max_team_power(ts, j)
-        if power < ts.required_power[j]:
-            out[j] = (power, team)
-    return out
+    """Objects no team can transport (Λ fails for every team that fits): j -> (max power, that team)
+    (computed once per TS)."""
+    out = _IMMOVABLE.get(ts)
+    if out is None:
+        out = {}
+        for j in range(ts.M):
+            power, team = max_team_power(ts, j)
+            if power < ts.required_power[j]:
+                out[j] = (power, team)
+        _IMMOVABLE[ts] = out
+    return dict(out)
 
 
 def check_power(ts: TransitionSystem, nba: NBA) -> None:
@@ -78,14 +87,14 @@ def check_power(ts: TransitionSystem, nba: NBA) -> None:
     stuck = immovable_objects(ts)
     if not stuck:
         return
-    if not useful_states(prune_nba(nba, ts)):
+    if not useful_states(prune_nba(nba, ts, transit=True)):
         return  # unsatisfiable for another reason; the planner reports it
     N = ts.N
     init = ts.initial
 
     def empty_with(js) -> bool:
         fixed = {N + j: init[N + j] for j in js}
-        return not useful_states(prune_nba(nba, ts, fixed))
+        return not useful_states(prune_nba(nba, ts, fixed, transit=True))
 
     if not empty_with(stuck):
         return
@@ -137,12 +146,12 @@ def _path(pred: np.ndarray, src: int, dst: int) -> list[int]:
 
 
 def solve_exact(ts: TransitionSystem, nba: NBA, relevant: int,
-                progress: Callable[[str], None] | None = None) -> ExactResult:
+                progress: Callable[[str], None] | None = None, ets: ExplicitTS | None = None) -> ExactResult:
     """Optimal prefix-suffix plan on the executed-word semantics (``relevant``: the task's AP_φ mask; see the
-    module docstring); UserError when the task is unsatisfiable."""
+    module docstring); UserError when the task is unsatisfiable.  ``ets``: the explicit TS if already built."""
     t0 = time.perf_counter()
     check_power(ts, nba)
-    pruned = prune_nba(nba, ts)
+    pruned = prune_nba(nba, ts, transit=True)
     useful = useful_states(pruned)
     stats: dict = {"nba_states": nba.num_states, "nba_useful_states": len(useful)}
     if nba.initial not in useful:
@@ -152,7 +161,8 @@ def solve_exact(ts: TransitionSystem, nba: NBA, relevant: int,
     product = Product(ts, small, relevant)
     if progress:
         progress("building the transition system")
-    ets = ts.build()
+    if ets is None:
+        ets = ts.build()
     if progress:
         progress("building the product")
     ep = product.build(ets)
@@ -162,26 +172,41 @@ def solve_exact(ts: TransitionSystem, nba: NBA, relevant: int,
                  product_edges=ep.num_edges, build_seconds=time.perf_counter() - t0)
     if progress:
         progress("shortest paths from the initial state")
-    d0, pred0 = dijkstra(g, directed=True, indices=ep.initial, return_predecessors=True)
+    unsat = (f"task is unsatisfiable: no accepting cycle is reachable in the product of the TS "
+             f"({ets.num_states} states, {ets.num_transitions} transitions) and the NBA "
+             f"({nba.num_states} states); searched all {{}} reachable product states")
+    found = optimal_lasso(g, ep.initial, ep.accepting_mask(), stats)
+    if found is None:
+        unsat = unsat.format(stats["product_reachable_nodes"])
+        stuck = immovable_objects(ts)
+        if stuck:
+            unsat += "; immovable objects: " + ", ".join(ts.object_names[j] for j in sorted(stuck))
+        raise UserError(unsat + blocked_note(ts))
+    prefix_ids, suffix_ids = found
+    node = ep.node
+    prefix = [node(v) for v in prefix_ids]
+    suffix = [node(v) for v in suffix_ids]
+    pc = sum(ts.cost(a[0], b[0]) for a, b in zip(prefix, prefix[1:] + suffix[:1]))
+    sc = sum(ts.cost(a[0], b[0]) for a, b in zip(suffix, suffix[1:] + suffix[:1]))
+    stats["seconds"] = time.perf_counter() - t0
+    return ExactResult(prefix, suffix, pc, sc, stats)
+
+
+def optimal_lasso(g: sp.csr_matrix, initial: int, accepting: np.ndarray, stats: dict) -> tuple[list, list] | None:
+    """Node ids of the cheapest lasso of the weighted graph ``g`` from ``initial`` through an ``accepting``
+    node (prefix before it, non-empty cycle from it), or None when no accepting node reachable from
+    ``initial`` lies on a cycle (steps 2-4 of the module docstring; sizes go into ``stats``)."""
+    d0, pred0 = dijkstra(g, directed=True, indices=initial, return_predecessors=True)
     reach = np.isfinite(d0)
-    n_reach = int(reach.sum())
-    stats["product_reachable_nodes"] = n_reach
-    acc = np.flatnonzero(ep.accepting_mask() & reach)
+    stats["product_reachable_nodes"] = int(reach.sum())
+    acc = np.flatnonzero(accepting & reach)
     ncomp, comp = connected_components(g, directed=True, connection="strong")
     sizes = np.bincount(comp, minlength=ncomp)
     ind, ptr, w = g.indices, g.indptr, g.data
     self_loop = np.array([a in ind[ptr[a]:ptr[a + 1]] for a in acc], dtype=bool)
     acc = acc[(sizes[comp[acc]] > 1) | self_loop]
-    unsat = (f"task is unsatisfiable: no accepting cycle is reachable in the product of the TS "
-             f"({ets.num_states} states, {ets.num_transitions} transitions) and the NBA "
-             f"({nba.num_states} states); searched all {n_reach} reachable product states")
     if len(acc) == 0:
-        stuck = immovable_objects(ts)
-        if stuck:
-            unsat += "; immovable objects: " + ", ".join(ts.object_names[j] for j in sorted(stuck))
-        raise UserError(unsat + blocked_note(ts))
-    if progress:
-        progress(f"cycles through {len(acc)} accepting product states")
+        return None
     gt = g.T.tocsr()
     dA = dijkstra(gt, directed=True, indices=acc, min_only=True)
     # LB(a) = min over edges a -> y of chi(a, y) + d(y, A)
@@ -212,15 +237,73 @@ def solve_exact(ts: TransitionSystem, nba: NBA, relevant: int,
             p = int(preds[i])
             best, best_a = float(d0[a] + c), a
             best_cycle = _path(pred, a, p) if p != a else [a]
+    stats.update(accepting_candidates=int(len(acc)), cycle_searches=cycles)
     if best_a < 0:
-        raise UserError(unsat + blocked_note(ts))
-    prefix_ids = _path(pred0, ep.initial, best_a)[:-1]
-    suffix_ids = best_cycle
-    node = ep.node
-    prefix = [node(v) for v in prefix_ids]
-    suffix = [node(v) for v in suffix_ids]
-    pc = sum(ts.cost(a[0], b[0]) for a, b in zip(prefix, prefix[1:] + suffix[:1]))
+        return None
+    return _path(pred0, initial, best_a)[:-1], best_cycle
+
+
+def solve_exact_graph(ts, nba: NBA, relevant: int, max_states: int = 200_000) -> ExactResult:
+    """Optimal prefix-suffix plan of a :class:`~mrodrake.planning.graph.GraphTS` (the NBA reads source
+    labels); UserError when unsatisfiable or when more than ``max_states`` joint states are reachable."""
+    t0 = time.perf_counter()
+    Q = nba.num_states
+    index = {ts.initial: 0}
+    states = [ts.initial]
+    src, dst, cost = [], [], []
+    u = 0
+    while u < len(states):
+        s = states[u]
+        for t in ts.successor_states(s):
+            v = index.get(t)
+            if v is None:
+                v = index[t] = len(states)
+                states.append(t)
+                if len(states) > max_states:
+                    raise UserError(f"--planner exact: more than {max_states} joint states are reachable; "
+                                    "use --planner stylus")
+            src.append(u)
+            dst.append(v)
+            cost.append(ts.cost(s, t))
+        u += 1
+    S = len(states)
+    src_a, dst_a, cost_a = np.array(src, dtype=np.int64), np.array(dst, dtype=np.int64), np.array(cost)
+    masks = [ts.label_mask(x) & relevant for x in states]
+    lids: dict[int, int] = {}
+    lid = np.array([lids.setdefault(m, len(lids)) for m in masks], dtype=np.int64)
+    rows_all, cols_all, data_all = [], [], []
+    for m, l in lids.items():
+        qs, q2s = [], []
+        for q in range(Q):
+            for d in nba.successors(q, m):
+                qs.append(q)
+                q2s.append(d)
+        e = np.flatnonzero(lid[src_a] == l)
+        if not len(e) or not qs:
+            continue
+        qs_a, q2s_a = np.array(qs, dtype=np.int64), np.array(q2s, dtype=np.int64)
+        rows_all.append((src_a[e, None] * Q + qs_a[None, :]).ravel())
+        cols_all.append((dst_a[e, None] * Q + q2s_a[None, :]).ravel())
+        data_all.append(np.repeat(cost_a[e], len(qs)))
+    n = S * Q
+    if rows_all:
+        g = sp.csr_matrix((np.concatenate(data_all), (np.concatenate(rows_all), np.concatenate(cols_all))),
+                          shape=(n, n))
+    else:
+        g = sp.csr_matrix((n, n))
+    acc = np.zeros(Q, dtype=bool)
+    acc[list(nba.accepting)] = True
+    stats: dict = {"nba_states": Q, "ts_states": S, "ts_transitions": len(src), "product_nodes": n,
+                   "product_edges": int(g.nnz)}
+    found = optimal_lasso(g, nba.initial, np.tile(acc, S), stats)
+    if found is None:
+        raise UserError(f"task is unsatisfiable: no accepting cycle is reachable in the product of the TS "
+                        f"({S} joint states, {len(src)} transitions) and the NBA ({Q} states); searched all "
+                        f"{stats['product_reachable_nodes']} reachable product states")
+    prefix = [(states[v // Q], v % Q) for v in found[0]]
+    suffix = [(states[v // Q], v % Q) for v in found[1]]
+    run = prefix + suffix
+    pc = sum(ts.cost(a[0], b[0]) for a, b in zip(run[:len(prefix)], run[1:len(prefix) + 1]))
     sc = sum(ts.cost(a[0], b[0]) for a, b in zip(suffix, suffix[1:] + suffix[:1]))
-    stats.update(accepting_candidates=int(len(acc)), cycle_searches=cycles,
-                 seconds=time.perf_counter() - t0)
+    stats["seconds"] = time.perf_counter() - t0
     return ExactResult(prefix, suffix, pc, sc, stats)

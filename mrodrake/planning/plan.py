@@ -52,12 +52,15 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable, Sequence
 
-from mrodrake.errors import UserError
-from mrodrake.logic.ltl import Formula, parse
+from mrodrake.errors import NoPlanFound, UserError
+from mrodrake.logic.ltl import Formula, atoms, parse
 from mrodrake.logic.nba import NBA
 from mrodrake.logic.translate import translate
-from mrodrake.planning.exact import check_power, solve_exact
-from mrodrake.planning.semantics import ExecutedWords, check_plan_words, relevant_mask
+from mrodrake.planning.decide import EXACT_BOUND, decide
+from mrodrake.planning.exact import check_power, solve_exact, solve_exact_graph
+from mrodrake.planning.graph import GraphTS, load_graph_ts
+from mrodrake.planning.graph_stylus import GraphStrategy
+from mrodrake.planning.semantics import ExecutedWords, SourceWords, relevant_mask, words_for
 from mrodrake.planning.stylus import Stylus
 from mrodrake.scenario import Scenario, load_scenario
 from mrodrake.ts import Action, Grasp, Navigate, Release, State, TransitionSystem, Transport
@@ -162,7 +165,7 @@ class Plan:
                 raise PlanVerificationError(f"run state {k + 1} is not a valid TS state")
             if not 0 <= q < nba.num_states:
                 raise PlanVerificationError(f"run state {k + 1}: NBA state {q} out of range")
-        words = ExecutedWords(ts, nba, relevant_mask(ts, formula))
+        words = words_for(ts, nba, relevant_mask(ts, formula))
         for step, part, i, j, a, b, acts, cost in self.steps():
             why = ts.check_transition(a[0], b[0])
             if why is not None:
@@ -180,7 +183,7 @@ class Plan:
         if not any(q in nba.accepting for _, q in self.suffix):
             raise PlanVerificationError("the suffix visits no accepting NBA state")
         steps = [(a[0], b[0], acts) for _, _, _, _, a, b, acts, _ in self.steps()]
-        if not check_plan_words(ts, formula, steps, len(self.prefix)):
+        if not words.check_plan(formula, steps, len(self.prefix)):
             raise PlanVerificationError("some word that executing the plan can produce violates the formula")
 
     # ------------------------------------------------------------------------------------ JSON
@@ -350,8 +353,10 @@ def plan_scenario(scenario, planner: str = "stylus", seed: int | None = None, it
 
     ``planner="stylus"``: STyLuS* with ``seed`` (default ``planning.seed``) for ``iterations`` (default
     ``planning.iterations``) or ``time_limit`` seconds; ``"exact"``: optimal plan on the explicit product.
-    Both plan on the executed-word semantics.  Unsatisfiable tasks and objects no team can move raise a
-    one-line UserError.
+    Both plan on the executed-word semantics.  Before STyLuS* samples, :func:`~mrodrake.planning.decide.decide`
+    tries to prove the task unsatisfiable (relaxations; the exact search when the product is small, whose
+    plan is returned if STyLuS* finds none).  Unsatisfiable tasks and objects no team can move raise a
+    one-line UserError; a budget that runs out undecided raises NoPlanFound (a UserError).
     """
     if not isinstance(scenario, Scenario):
         scenario = load_scenario(scenario)
@@ -365,15 +370,27 @@ def plan_scenario(scenario, planner: str = "stylus", seed: int | None = None, it
     ts = TransitionSystem(scenario)
     formula, nba, words = task_words(scenario, ts)
     check_power(ts, nba)
+    decision = None
     if planner == "exact":
         res = solve_exact(ts, nba, words.relevant,
                           progress=(lambda msg: progress({"message": msg})) if progress else None)
         used_seed = None
     else:
+        if progress:
+            progress({"message": "deciding satisfiability"})
+        decision = decide(ts, nba, words.relevant)
         used_seed = scenario.planning.seed if seed is None else int(seed)
         its = scenario.planning.iterations if iterations is None else int(iterations)
-        res = Stylus(ts, nba, words.relevant, seed=used_seed).run(its, time_limit=time_limit, progress=progress)
+        try:
+            res = Stylus(ts, nba, words.relevant, seed=used_seed).run(its, time_limit=time_limit, progress=progress)
+        except NoPlanFound as e:
+            if decision.exact is None:
+                raise NoPlanFound(f"{e}; {decision.undecided}") from None
+            res, planner, used_seed = decision.exact, "exact", None
+            res.stats["stylus"] = f"{e}; the exact planner found this plan"
     stats = dict(res.stats)
+    if decision is not None:
+        stats["decide"] = decision.stats
     if getattr(res, "history", None):
         stats["cost_history"] = [[round(t, 4), it, c] for t, it, c in res.history]
     stats["nba_states"] = nba.num_states
@@ -382,4 +399,59 @@ def plan_scenario(scenario, planner: str = "stylus", seed: int | None = None, it
     plan = Plan.from_runs(ts, scenario.name, str(formula), planner, used_seed, res.prefix, res.suffix, words,
                           stats)
     plan.verify(ts, nba, formula)
+    return plan
+
+
+def graph_task_nba(ts: GraphTS, formula: str | None = None) -> tuple[Formula, NBA]:
+    """(formula, NBA over ts.propositions) of a graph task; UserError for atoms that are not propositions."""
+    f = parse(ts.scenario.formula if formula is None else formula, source="task")
+    unknown = sorted(atoms(f) - set(ts.propositions))
+    if unknown:
+        raise UserError(f"task: unknown proposition '{unknown[0]}' (propositions: {', '.join(ts.propositions)})")
+    return f, translate(f).with_ap(ts.propositions)
+
+
+def plan_graph(ts, formula: str | None = None, planner: str = "stylus", seed: int | None = None,
+               iterations: int | None = None, time_limit: float | None = None,
+               progress: Callable[[dict], None] | None = None) -> Plan:
+    """Plan a multi-robot graph task (a :class:`~mrodrake.planning.graph.GraphTS` or a task file) and return
+    the verified plan; the NBA reads source labels.  ``planner`` and the budget as in :func:`plan_scenario`;
+    the default planner first decides small products exactly (at most
+    :data:`~mrodrake.planning.decide.EXACT_BOUND` joint states × NBA states) and returns that plan if
+    STyLuS* finds none."""
+    if not isinstance(ts, GraphTS):
+        ts = load_graph_ts(ts)
+    if planner not in ("stylus", "exact"):
+        raise UserError(f"--planner: unknown planner '{planner}' (expected 'stylus' or 'exact')")
+    if iterations is not None and iterations <= 0:
+        raise UserError(f"--iterations: must be > 0, got {iterations}")
+    if time_limit is not None and not time_limit > 0:
+        raise UserError(f"--time-limit: must be > 0, got {time_limit}")
+    t0 = time.perf_counter()
+    f, nba = graph_task_nba(ts, formula)
+    words = SourceWords(ts, nba, relevant_mask(ts, f))
+    exact = None
+    bound = math.prod(int(GraphStrategy(ts, words.relevant).reach(i).sum()) for i in range(ts.N))
+    if planner == "exact":
+        res, used_seed = solve_exact_graph(ts, nba, words.relevant), None
+    else:
+        if bound * nba.num_states <= EXACT_BOUND:
+            exact = solve_exact_graph(ts, nba, words.relevant)
+        used_seed = ts.scenario.planning.seed if seed is None else int(seed)
+        its = ts.scenario.planning.iterations if iterations is None else int(iterations)
+        try:
+            res = Stylus(ts, nba, words.relevant, seed=used_seed).run(its, time_limit=time_limit, progress=progress)
+        except NoPlanFound as e:
+            if exact is None:
+                raise NoPlanFound(f"{e}; the explicit product is too large to decide (up to {bound:.1e} joint "
+                                  f"states × {nba.num_states} NBA states)") from None
+            res, planner, used_seed = exact, "exact", None
+            res.stats["stylus"] = f"{e}; the exact planner found this plan"
+    stats = dict(res.stats)
+    if getattr(res, "history", None):
+        stats["cost_history"] = [[round(t, 4), it, c] for t, it, c in res.history]
+    stats.update(nba_states=nba.num_states, nba_edges=nba.num_edges, joint_states_bound=float(bound),
+                 total_seconds=time.perf_counter() - t0)
+    plan = Plan.from_runs(ts, ts.name, str(f), planner, used_seed, res.prefix, res.suffix, words, stats)
+    plan.verify(ts, nba, f)
     return plan

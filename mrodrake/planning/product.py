@@ -10,7 +10,9 @@ The module also holds the NBA preprocessing shared by the planners:
 
 * :func:`prune_nba` drops the guard cubes that no single TS label can satisfy (an entity in two regions
   at once, an entity in no region, entities that cannot all fit in one region, an entity fixed by the
-  caller somewhere else), which is step (1) of STyLuS* (Kantaros & Zavlanos 2020);
+  caller somewhere else), which is step (1) of STyLuS* (Kantaros & Zavlanos 2020); with ``transit=True``
+  it keeps the cubes that a letter of an executed word satisfies while an entity is between regions (the
+  planners read executed words, so they prune with ``transit=True``);
 * :func:`accepting_on_cycle` and :func:`hop_distances` give the accepting states that lie on a cycle
   of the pruned automaton and each state's hop distance to them (edges of weight 1).
 """
@@ -78,7 +80,7 @@ def entity_radius(ts: TransitionSystem, e: int) -> float:
 
 
 def cube_infeasibility(ts: TransitionSystem, pos: int, neg: int,
-                       fixed: Mapping[int, int] | None = None) -> str | None:
+                       fixed: Mapping[int, int] | None = None, transit: bool = False) -> str | None:
     """Why no TS label satisfies the cube ``(pos, neg)`` (``None`` if some label might).
 
     A label puts every entity in exactly one region, so a cube is infeasible if it puts an entity in two
@@ -86,6 +88,8 @@ def cube_infeasibility(ts: TransitionSystem, pos: int, neg: int,
     together in one region (necessary area condition: a valid region holds disjoint disks of radius
     r_D + spacing/2 inside radius R − spacing/2, and a team's covering disk holds its members, so
     Σ r_e² ≤ (R − spacing/2)²).  ``fixed`` maps entities to the only region they can ever be in.
+    ``transit=True`` judges letters of executed words instead of state labels: an entity that is not fixed
+    may be in no region (between two regions, :mod:`~mrodrake.planning.semantics`).
     """
     if pos & neg:
         return "a proposition is required both true and false"
@@ -100,7 +104,7 @@ def cube_infeasibility(ts: TransitionSystem, pos: int, neg: int,
         if len(ks) > 1:
             return f"{names[e]} would be in two regions at once"
     for e, f in forb.items():
-        if e < n_ent and f == full:
+        if e < n_ent and f == full and not (transit and e not in (fixed or {})):
             return f"{names[e]} would be in no region"
     if fixed:
         for e, k in fixed.items():
@@ -117,12 +121,14 @@ def cube_infeasibility(ts: TransitionSystem, pos: int, neg: int,
     return None
 
 
-def prune_nba(nba: NBA, ts: TransitionSystem, fixed: Mapping[int, int] | None = None) -> NBA:
+def prune_nba(nba: NBA, ts: TransitionSystem, fixed: Mapping[int, int] | None = None,
+              transit: bool = False) -> NBA:
     """The NBA without guard cubes that no TS label can satisfy (STyLuS* step 1).
 
     The result accepts exactly the same TS traces (every dropped cube is false on every TS label), and
     it keeps the state numbering.  ``fixed`` (entity -> region) additionally assumes entities that can
-    never move (e.g. objects no team is powerful enough to transport).
+    never move (e.g. objects no team is powerful enough to transport); ``transit`` as in
+    :func:`cube_infeasibility` (then the result accepts the same executed words).
     """
     if tuple(nba.ap) != tuple(ts.propositions):
         raise ValueError("the NBA must be over the TS propositions (use nba.with_ap(ts.propositions))")
@@ -130,7 +136,7 @@ def prune_nba(nba: NBA, ts: TransitionSystem, fixed: Mapping[int, int] | None = 
     for row in nba.edges:
         new_row = []
         for guard, dst in row:
-            cubes = [(p, n) for p, n in guard if cube_infeasibility(ts, p, n, fixed) is None]
+            cubes = [(p, n) for p, n in guard if cube_infeasibility(ts, p, n, fixed, transit) is None]
             if cubes:
                 new_row.append((cubes, dst))
         edges.append(new_row)

@@ -11,7 +11,9 @@ target NBA guard cube requires, the regions it forbids, and, when closing a suff
 state's regions and grasps).  One call advances every sub-task by one TS step:
 
 1. *objects that must move* (required elsewhere, or forbidden where they are) are visited in random
-   order; if the robots grasping object j already satisfy Λ, the team transports j to its target;
+   order; if the robots grasping object j already satisfy Λ, the team transports j toward its target
+   (there directly when the two regions are connected for the team's covering radius, else to the next
+   region of a shortest route of connected regions; navigations likewise);
    otherwise a team is completed greedily by the marginal cost of each candidate robot,
    ``d(robot, object) + d(object, target) + detour to the robot's own required region`` per unit of
    useful power, perturbed by log-normal noise (so alternative teams get explored) and stripped of
@@ -43,6 +45,8 @@ from dataclasses import dataclass, field
 from typing import Mapping
 
 import numpy as np
+from scipy.sparse import csr_matrix
+from scipy.sparse.csgraph import dijkstra
 
 from mrodrake.ts import State, TransitionSystem
 
@@ -85,6 +89,7 @@ class SuccessorSampler:
         self.power = list(ts.power)
         self.required_power = list(ts.required_power)
         self.stats = {"toward": 0, "toward_fail": 0, "random": 0, "random_fail": 0}
+        self._next: dict[tuple[int, int], tuple[np.ndarray, list[int]]] = {}
 
     # ------------------------------------------------------------------------------------------- public
     def sample(self, s: State, goal: Goal | None, p_new: float) -> State:
@@ -151,6 +156,23 @@ class SuccessorSampler:
                 t[u[1]] = u[2]
         return tuple(t)
 
+    def _hop(self, radius: float, src: int, dst: int) -> int:
+        """The region to travel to from ``src`` toward ``dst``: ``dst`` itself when they are connected for
+        ``radius``, else the next region on a shortest route of connected regions (``dst`` if none)."""
+        C = self.ts.connections(radius)
+        if C[src, dst]:
+            return dst
+        key = (id(C), dst)
+        hit = self._next.get(key)
+        nxt = hit[1] if hit is not None and hit[0] is C else None
+        if nxt is None:
+            W = np.where(C, self.ts.dist, 0.0)
+            np.fill_diagonal(W, 0.0)
+            _, pred = dijkstra(csr_matrix(W.T), directed=True, indices=dst, return_predecessors=True)
+            nxt = [int(p) if p >= 0 else dst for p in pred]
+            self._next[key] = (C, nxt)
+        return nxt[src]
+
     def _allowed_region(self, e: int, forbidden_mask: int, current: int) -> int:
         """A uniformly random region other than ``current`` that is not forbidden (or ``current``)."""
         choices = [k for k in range(self.K) if k != current and not forbidden_mask >> k & 1]
@@ -193,7 +215,7 @@ class SuccessorSampler:
             team = teams[j]
             have = sum(self.power[i] for i in team)
             if team and have >= self.required_power[j]:
-                units.append(("T", j, k2, tuple(team)))
+                units.append(("T", j, self._hop(self.ts.covering_radius(j, tuple(team)), k, k2), tuple(team)))
                 stays[j] = False
                 for i in team:
                     decided[i] = True
@@ -212,7 +234,7 @@ class SuccessorSampler:
                 elif R[i] == k:
                     units.append(("G", i, j))
                 else:
-                    units.append(("N", i, k))
+                    units.append(("N", i, self._hop(self.ts.robot_radius[i], R[i], k)))
         for i in range(N):
             if decided[i]:
                 continue
@@ -230,11 +252,11 @@ class SuccessorSampler:
                     units.append(("G", i, want))
                     continue
                 if obj_tgt[want] is None or obj_tgt[want] == O[want]:
-                    units.append(("N", i, O[want]))
+                    units.append(("N", i, self._hop(self.ts.robot_radius[i], R[i], O[want])))
                     continue
             tgt = rob_tgt[i]
             if tgt is not None and tgt != R[i]:
-                units.append(("N", i, tgt))
+                units.append(("N", i, self._hop(self.ts.robot_radius[i], R[i], tgt)))
         return units
 
     def _recruit(self, j: int, k: int, k2: int, have: float, R, G, decided, moving, rob_tgt) -> list[int] | None:

@@ -121,6 +121,62 @@ def interleavings(cross: Sequence[Crossing]) -> Iterator[list[tuple[int, int]]]:
     yield from rec(0, [])
 
 
+class GuardTable:
+    """NBA successors of letters, for states whose guards have many cubes: the cubes as packed bit arrays
+    over the propositions they mention, evaluated at once with numpy (same answers as
+    :meth:`~mrodrake.logic.nba.NBA.successors`, which loops over the cubes one Python integer at a time)."""
+
+    #: States with more cubes than this use the packed table.
+    min_cubes = 64
+
+    def __init__(self, nba: NBA):
+        self.nba = nba
+        self._tables: dict[int, tuple | None] = {}
+
+    def _table(self, q: int):
+        if q in self._tables:
+            return self._tables[q]
+        flat = [(p, n, d) for g, d in self.nba.edges[q] for p, n in g]
+        table = None
+        if len(flat) > self.min_cubes:
+            used = 0
+            for p, n, _ in flat:
+                used |= p | n
+            bits = np.array([b for b in range(used.bit_length()) if used >> b & 1], dtype=np.int64)
+            nbytes = (used.bit_length() + 7) // 8
+            words = (len(bits) + 63) // 64
+            P = np.stack([self._pack(p & used, nbytes, bits, words) for p, _, _ in flat])
+            N = np.stack([self._pack(n & used, nbytes, bits, words) for _, n, _ in flat])
+            table = (used, nbytes, bits, words, P, N, np.array([d for _, _, d in flat], dtype=np.int64))
+        self._tables[q] = table
+        return table
+
+    @staticmethod
+    def _pack(x: int, nbytes: int, bits: np.ndarray, words: int) -> np.ndarray:
+        """The bits ``bits`` of x, packed into ``words`` 64-bit words."""
+        raw = np.unpackbits(np.frombuffer(x.to_bytes(nbytes, "little"), dtype=np.uint8), bitorder="little")
+        out = np.zeros(8 * words, dtype=np.uint8)
+        packed = np.packbits(raw[bits], bitorder="little")
+        out[:len(packed)] = packed
+        return out.view("<u8")
+
+    def successors_mask(self, q: int, letter: int) -> int:
+        """Bit mask of δ(q, letter)."""
+        table = self._table(q)
+        if table is None:
+            return sum(1 << d for d in self.nba.successors(q, letter))
+        used, nbytes, bits, words, P, N, dst = table
+        L = self._pack(letter & used, nbytes, bits, words)
+        if words == 1:
+            ok = ((P[:, 0] & ~L[0]) == 0) & ((N[:, 0] & L[0]) == 0)
+        else:
+            ok = ~((P & ~L).any(axis=1) | (N & L).any(axis=1))
+        out = 0
+        for d in np.unique(dst[ok]):
+            out |= 1 << int(d)
+        return out
+
+
 class ExecutedWords:
     """The executed-word semantics (module docstring) of a TS and an NBA over ``ts.propositions``;
     ``relevant`` is the AP_φ mask (:func:`relevant_mask`).  All queries are cached; every answer is a pure
@@ -140,6 +196,7 @@ class ExecutedWords:
         n_ent = ts.N + ts.M
         self.entity_region = np.array([[bool(self.relevant >> (e * K + k) & 1) for k in range(K)]
                                        for e in range(n_ent)], dtype=bool).reshape(n_ent, K)
+        self.guards = GuardTable(nba)
         self._succ_bits: dict[int, list[int]] = {}
         self._delta: dict[tuple[int, int], int] = {}
         self._lattice: dict[tuple, tuple[frozenset, int]] = {}
@@ -155,12 +212,14 @@ class ExecutedWords:
         if out is None:
             bits = self._succ_bits.get(letter)
             if bits is None:
-                bits = [sum(1 << d for d in self.nba.successors(q, letter)) for q in range(self.Q)]
-                self._succ_bits[letter] = bits
+                bits = self._succ_bits[letter] = [-1] * self.Q  # filled per state on demand
             out, q, m = 0, 0, S
             while m:
                 if m & 1:
-                    out |= bits[q]
+                    b = bits[q]
+                    if b < 0:
+                        b = bits[q] = self.guards.successors_mask(q, letter)
+                    out |= b
                 m >>= 1
                 q += 1
             self._delta[key] = out
@@ -324,6 +383,11 @@ class ExecutedWords:
             common &= T
         return common
 
+    def check_plan(self, formula: Formula, steps: Sequence[tuple[State, State, Sequence[Action]]],
+                   loop_start: int) -> bool:
+        """:func:`check_plan_words` of a lasso of steps (source, target, actions in execution order)."""
+        return check_plan_words(self.ts, formula, steps, loop_start)
+
     def step_words(self, s: State, t: State, order: Sequence[Action]) -> Iterator[list[int]]:
         """Every word (projected letters) that executing s → t in ``order`` may produce."""
         m0 = self.ts.label_mask(s) & self.relevant
@@ -394,7 +458,14 @@ def check_plan_words(ts: TransitionSystem, formula: Formula, steps: Sequence[tup
     graph times the NBA of ¬φ, translated afresh: independent of the planner's NBA run.)"""
     relevant = relevant_mask(ts, formula)
     edges, n = plan_word_graph(ts, relevant, steps, loop_start)
-    neg = translate(Not(formula)).with_ap(ts.propositions)
+    return words_satisfy(ts.propositions, formula, edges, n)
+
+
+def words_satisfy(propositions: Sequence[str], formula: Formula, edges: Sequence[tuple[int, int, int]], n: int,
+                  start: int = 0) -> bool:
+    """Does every infinite path of the word graph (``n`` nodes, edges (u, v, letter)) from ``start`` satisfy
+    ``formula``?  (Model check against a fresh NBA of ¬φ.)"""
+    neg = translate(Not(formula)).with_ap(propositions)
     P = neg.num_states
     rows, cols = [], []
     for u, v, letter in edges:
@@ -405,7 +476,7 @@ def check_plan_words(ts: TransitionSystem, formula: Formula, steps: Sequence[tup
     size = n * P
     g = csr_matrix((np.ones(len(rows), dtype=np.int8), (rows, cols)), shape=(size, size))
     reach = np.zeros(size, dtype=bool)
-    reach[breadth_first_order(g, neg.initial, directed=True, return_predecessors=False)] = True
+    reach[breadth_first_order(g, start * P + neg.initial, directed=True, return_predecessors=False)] = True
     _, comp = connected_components(g, directed=True, connection="strong")
     for x in np.flatnonzero(reach):
         if int(x) % P not in neg.accepting:
@@ -415,3 +486,69 @@ def check_plan_words(ts: TransitionSystem, formula: Formula, steps: Sequence[tup
         if np.any(same[g.indices[lo:hi]]):  # x lies on a cycle of its component
             return False
     return True
+
+
+class SourceWords:
+    """The paper's reading (one letter per step: the source state's label, projected on AP_φ) with the
+    interface of :class:`ExecutedWords`, for transition systems whose steps pass through no other label
+    (:class:`~mrodrake.planning.graph.GraphTS`)."""
+
+    def __init__(self, ts, nba: NBA, relevant: int):
+        if tuple(nba.ap) != tuple(ts.propositions):
+            raise ValueError("the NBA must be over the TS propositions (use nba.with_ap(ts.propositions))")
+        self.ts, self.nba, self.relevant = ts, nba, int(relevant)
+        self.Q = nba.num_states
+        self._matrix: dict[int, np.ndarray] = {}
+
+    def letter(self, s: State) -> int:
+        return self.ts.label_mask(s) & self.relevant
+
+    def delta(self, S: int, letter: int) -> int:
+        out, q = 0, 0
+        while S >> q:
+            if S >> q & 1:
+                for d in self.nba.successors(q, letter):
+                    out |= 1 << d
+            q += 1
+        return out
+
+    def matrix_for(self, mask: int, sig: tuple = ()) -> np.ndarray:
+        M = self._matrix.get(mask)
+        if M is None:
+            M = np.zeros((self.Q, self.Q), dtype=bool)
+            for q in range(self.Q):
+                M[q, self.nba.successors(q, mask)] = True
+            self._matrix[mask] = M
+        return M
+
+    def matrix(self, s: State, t: State) -> np.ndarray:
+        return self.matrix_for(self.letter(s))
+
+    def rows(self, s: State, t: State, qs) -> np.ndarray:
+        return self.matrix_for(self.letter(s))[qs]
+
+    def visible(self, X: np.ndarray, Y) -> np.ndarray:
+        return np.zeros(len(X), dtype=bool)
+
+    def successors(self, q: int, s: State, t: State) -> dict[int, tuple]:
+        acts = self.ts.actions(s, t)
+        return {d: acts for d in self.nba.successors(q, self.letter(s))}
+
+    def order(self, s: State, q: int, t: State, q2: int) -> tuple | None:
+        return self.ts.actions(s, t) if q2 in self.nba.successors(q, self.letter(s)) else None
+
+    def reached(self, S: int, s: State, t: State, order: Sequence) -> int:
+        return self.delta(S, self.letter(s))
+
+    def check_plan(self, formula: Formula, steps: Sequence[tuple[State, State, Sequence]], loop_start: int) -> bool:
+        """Does the lasso of source labels satisfy ``formula``?"""
+        n = len(steps)
+        edges = [(k, k + 1 if k + 1 < n else loop_start, self.ts.label_mask(s) & relevant_mask(self.ts, formula))
+                 for k, (s, _, _) in enumerate(steps)]
+        return words_satisfy(self.ts.propositions, formula, edges, n)
+
+
+def words_for(ts, nba: NBA, relevant: int):
+    """The word semantics of a transition system: :class:`SourceWords` for those that read source labels
+    (``reads_source_label``, the graph TS), else :class:`ExecutedWords`."""
+    return (SourceWords if getattr(ts, "reads_source_label", False) else ExecutedWords)(ts, nba, relevant)

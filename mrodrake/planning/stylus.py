@@ -11,7 +11,10 @@ The product is never built.  The algorithm, as implemented here:
    to the plain distance for states that cannot reach one.
 2. **Prefix tree** rooted at ``(s0, q0)``.  Each iteration selects a node: with probability ``p_rand``
    uniformly among the expandable nodes of minimum ``h(s, q) = min_{q' ∈ δ(q, L(s))} D(q')``, else
-   uniformly among all expandable nodes.  Among the next NBA states of minimum distance it takes the
+   uniformly among all expandable nodes.  Strategies with a ``focus`` (the graph TS; object systems beyond
+   the case studies' size) first, with that probability, take the node of the minimum bucket with the fewest
+   estimated steps to its goal cube that was not taken this way before, so that a chain of steps toward a
+   goal takes about as many iterations as it has steps.  Among the next NBA states of minimum distance it takes the
    edges that decrease the distance most and, of their guard cubes, one with the fewest estimated TS
    steps from ``s`` (navigate, grasp, transport); the cube says which entities must (not) be where.  A
    TS successor of ``s`` is sampled toward that cube with probability ``p_new``, else uniformly at
@@ -34,12 +37,15 @@ is below the best plan.  A suffix tree is set aside after ``suffix_budget`` (100
 all are set aside without a plan, every budget doubles (so no candidate is abandoned for good).
 ``iterations`` counts all tree iterations; ``time_limit`` stops earlier; without a plan after
 ``iterations`` the search continues until the first plan (at most ``time_limit``, or ``extend_seconds``).
-All randomness comes from one seeded numpy Generator: the same seed and iteration budget give the same
+The TS-specific parts (pruning, word semantics, vectorised transition test and costs, goals, estimated steps,
+successor sampler) are a *strategy*: :class:`ObjectStrategy` here, :class:`~mrodrake.planning.graph_stylus.
+GraphStrategy` for multi-robot graph systems.  All randomness comes from one seeded numpy Generator: the same seed and iteration budget give the same
 plan (a time limit makes the result depend on the machine's speed).
 """
 
 from __future__ import annotations
 
+import heapq
 import math
 import time
 from dataclasses import dataclass, field
@@ -47,9 +53,10 @@ from typing import Callable
 
 import numpy as np
 
-from mrodrake.errors import UserError
-from mrodrake.planning.exact import blocked_note
+from mrodrake.errors import NoPlanFound, UserError
 from mrodrake.logic.nba import NBA
+from mrodrake.planning.exact import blocked_note
+from mrodrake.planning.graph_stylus import GraphStrategy
 from mrodrake.planning.product import (CubeGoal, accepting_on_cycle, cube_goal, cube_infeasibility,
                                        cycle_distances, hop_distances, hop_distances_from, prune_nba,
                                        useful_states)
@@ -58,6 +65,8 @@ from mrodrake.planning.semantics import ExecutedWords
 from mrodrake.ts import State, TransitionSystem
 
 INF = math.inf
+#: Object systems with more robots + objects than this focus STyLuS*'s selection (ObjectStrategy.focus).
+FOCUS_ENTITIES = 8
 
 
 class _Transitions:
@@ -85,8 +94,18 @@ class _Transitions:
         """
         N, M = self.N, self.M
         n = len(X)
-        if M == 0:
-            return self.ts.steps_fit(X, s)
+        if M == 0:  # robots only: every move must be travelled, and the step must fit
+            s = np.asarray(s, dtype=np.int64).ravel()
+            ok = np.ones(n, dtype=bool)
+            moves = X[:, :N] != s[:N]
+            for i in np.flatnonzero(moves.any(axis=0)):
+                C = self.ts.connections(self.ts.robot_radius[i])
+                rows = np.flatnonzero(moves[:, i])
+                ok[rows] &= C[X[rows, i], s[i]]
+            rows = np.flatnonzero(ok)
+            if len(rows):
+                ok[rows] = self.ts.steps_fit(X[rows], s)
+            return ok
         s = np.asarray(s, dtype=np.int64).ravel()
         XR, XO, XG = X[:, :N], X[:, N : N + M], X[:, N + M :]
         sR, sO, sG = s[:N], s[N : N + M], s[N + M :]
@@ -135,6 +154,99 @@ class _Transitions:
         return c
 
 
+class ObjectStrategy:
+    """TS-specific parts of STyLuS* for the multi-robot-object TS: pruning on executed words, the
+    executed-word semantics, the vectorised transition test, guard cubes as region goals
+    (:class:`~mrodrake.planning.sampler.Goal`) and the domain-aware sampler
+    (:mod:`~mrodrake.planning.sampler`).  :mod:`~mrodrake.planning.graph_stylus` has the graph TS's."""
+
+    symmetric = True  # the TS relation and χ are symmetric on valid states (see _Transitions.mask)
+    dtype = np.int16
+
+    def __init__(self, ts: TransitionSystem, relevant: int):
+        self.ts, self.relevant = ts, int(relevant)
+        self.p_rand = ts.scenario.planning.p_rand
+        self.p_new = ts.scenario.planning.p_new
+        self.transitions = _Transitions(ts)
+        # beyond the case studies' size the best bucket holds hundreds of nodes and uniform picks rarely
+        # continue a chain of steps toward a goal: focus on the closest node (see _Tree.select)
+        self.focus = 0.0 if ts.N + ts.M <= FOCUS_ENTITIES else 0.8
+        self._cubes: dict[tuple[int, int], CubeGoal] = {}
+        self._dlist = ts.dist.tolist()
+        self._dscale = float(ts.dist.max()) * (ts.N + ts.M) + 1.0
+
+    def prune(self, nba: NBA) -> NBA:
+        return prune_nba(nba, self.ts, transit=True)
+
+    def words(self, nba: NBA) -> ExecutedWords:
+        return ExecutedWords(self.ts, nba, self.relevant)
+
+    def sampler(self, rng: np.random.Generator) -> SuccessorSampler:
+        return SuccessorSampler(self.ts, rng)
+
+    def cube_infeasibility(self, pos: int, neg: int) -> str | None:
+        return cube_infeasibility(self.ts, pos, neg, transit=True)
+
+    def no_plan_note(self) -> str:
+        return blocked_note(self.ts)
+
+    @staticmethod
+    def can_idle(s: State) -> bool:
+        """Is the all-idle step s → s a transition?  (Always: every robot may stay.)"""
+        return True
+
+    def cube(self, pos: int, neg: int) -> CubeGoal:
+        key = (pos, neg)
+        cg = self._cubes.get(key)
+        if cg is None:
+            cg = cube_goal(self.ts, pos, neg)
+            self._cubes[key] = cg
+        return cg
+
+    def goal(self, pos: int, neg: int, target: State | None) -> Goal | None:
+        """The regions the cube asks for (completed by ``target``'s when closing a suffix), or None."""
+        cg = self.cube(pos, neg)
+        if target is None and not cg.required and not cg.forbidden:
+            return None
+        return Goal.from_cube(cg.required, cg.forbidden, target, self.ts)
+
+    def cube_steps(self, s: State, pos: int, neg: int, target: State | None = None) -> float:
+        """Rough number of TS steps until s satisfies the cube (navigate, grasp, transport; the travel
+        distance still needed breaks ties), used to choose among the guard cubes to aim at (``target``, the
+        root of a suffix tree, is not used)."""
+        cg = self.cube(pos, neg)
+        ts = self.ts
+        N = ts.N
+        d = self._dlist
+        steps, dist = 0, 0.0
+        for e, k in cg.required.items():
+            if e < N:
+                if s[e] != k:
+                    steps += 1 + (s[ts.N + ts.M + e] >= 0)
+                    dist += d[s[e]][k]
+            else:
+                j = e - N
+                r = s[e]
+                if r != k:
+                    steps += 1
+                    dist += d[r][k]
+                    team = sum(ts.power[i] for i in range(N) if s[N + ts.M + i] == j)
+                    if team < ts.required_power[j]:
+                        near = sum(ts.power[i] for i in range(N) if s[i] == r and s[N + ts.M + i] < 0)
+                        steps += 1 if team + near >= ts.required_power[j] else 2
+        for e, mask in cg.forbidden.items():
+            if mask >> s[e] & 1 and e not in cg.required:
+                steps += 1 if e < N else 3
+        return steps + dist / self._dscale
+
+
+def strategy_for(ts, relevant: int):
+    """The STyLuS* strategy of a transition system (graph TS or multi-robot-object TS)."""
+    if getattr(ts, "reads_source_label", False):
+        return GraphStrategy(ts, relevant)
+    return ObjectStrategy(ts, relevant)
+
+
 class _Labels:
     """NBA moves per TS label, shared by all trees: label id -> bool matrix ``T[q, q']``."""
 
@@ -172,9 +284,9 @@ class _Tree:
         self.D = dist
         self.close_to = close_to
         self.Q = planner.nba.num_states
-        self.width = 2 * ts.N + ts.M
+        self.width = len(ts.initial)
         cap = 256
-        self.X = np.zeros((cap, self.width), dtype=np.int16)
+        self.X = np.zeros((cap, self.width), dtype=planner.strategy.dtype)
         self.lid = np.zeros(cap, dtype=np.int32)
         self.node_of = np.full((cap, self.Q), -1, dtype=np.int64)
         self.C = np.zeros(cap)
@@ -189,6 +301,7 @@ class _Tree:
         self.buckets: dict[float, list[int]] = {}
         self.expandable: list[int] = []
         self.closers: list[int] = []
+        self.frontier: dict[float, list[tuple[float, int]]] = {}  # per bucket: (estimated steps, node)
         self._opts: dict[int, list] = {}
         self.iterations = 0
         tid = self._add_state(root)
@@ -226,6 +339,10 @@ class _Tree:
         if h < INF:
             self.buckets.setdefault(h, []).append(v)
             self.expandable.append(v)
+            if self.p.focus:
+                opts = self.options(v)
+                if opts:
+                    heapq.heappush(self.frontier.setdefault(h, []), (min(o[0] for o in opts), v))
         if self.close_to is not None and self._closes(v):
             self.closers.append(v)
         self.p._on_new_node(self, v)
@@ -260,7 +377,7 @@ class _Tree:
         p = self.p
         tid = self.tid_of.get(s)
         n = len(self.states)
-        row = np.asarray(s, dtype=np.int16)[None, :]
+        row = np.asarray(s, dtype=self.X.dtype)[None, :]
         X = self.X[:n]
         pred = np.flatnonzero(p.trans.mask(X, s))
         if tid is None:
@@ -293,8 +410,8 @@ class _Tree:
             elif self.C[u] + c < self.C[v] - 1e-9 and u != v:
                 self._reparent(v, u, c)
                 changed.append(v)
-        # idle self-loop closure: (s, q) -> (s, q') costs nothing when q' ∈ δ(q, L(s))
-        queue = list(changed)
+        # idle self-loop closure: (s, q) -> (s, q') costs nothing when q' ∈ δ(q, L(s)) and s -> s exists
+        queue = list(changed) if p.strategy.can_idle(s) else []
         succ_rows = p.labels.succ[self.lid[tid]]
         while queue:
             v = queue.pop()
@@ -308,7 +425,10 @@ class _Tree:
                     continue
                 changed.append(y)
                 queue.append(y)
-        for v in dict.fromkeys(changed):  # successors of s are its predecessors (symmetric relation, χ)
+        if not p.strategy.symmetric:
+            pred = np.flatnonzero(p.trans.mask_from(s, X))
+            chi = p.trans.cost(row, X[pred])
+        for v in dict.fromkeys(changed):  # symmetric relation and χ: successors of s are its predecessors
             self._rewire_from(v, pred, chi)
 
     def _rewire_from(self, v: int, succ: np.ndarray, chi: np.ndarray) -> None:
@@ -336,7 +456,13 @@ class _Tree:
             self._reparent(y, v, w)
 
     def select(self, rng: np.random.Generator) -> int:
-        """With probability p_rand a uniform node of the minimum-distance bucket, else any expandable node."""
+        """With probability ``focus`` (strategies that set it) the node of the minimum-distance bucket with the
+        fewest estimated steps to its goal cube that was not focused on before; else with probability p_rand a
+        uniform node of that bucket, else any expandable node."""
+        if self.p.focus and rng.random() < self.p.focus:
+            heap = self.frontier.get(min(self.buckets))
+            if heap:
+                return heapq.heappop(heap)[1]
         if rng.random() < self.p.p_rand:
             bucket = self.buckets[min(self.buckets)]
             return bucket[int(rng.integers(len(bucket)))]
@@ -379,7 +505,9 @@ class _Tree:
                 if D[q2] == want:
                     for pos, neg in guard:
                         cubes.setdefault((pos, neg, q2), None)
-        opts = [(p.cube_steps(s, p.cube(pos, neg)), pos, neg, q2) for pos, neg, q2 in cubes]
+        close = self.close_to
+        opts = [(p.strategy.cube_steps(s, pos, neg, close[0] if close is not None and q2 == close[1] else None),
+                 pos, neg, q2) for pos, neg, q2 in cubes]
         self._opts[v] = opts
         return opts
 
@@ -392,13 +520,10 @@ class _Tree:
         vmin = min(o[0] for o in opts)
         best = [o for o in opts if o[0] == vmin]
         _, pos, neg, q2 = best[int(rng.integers(len(best)))]
-        cg = p.cube(pos, neg)
         target = None
         if self.close_to is not None and q2 == self.close_to[1]:
             target = self.close_to[0]
-        if target is None and not cg.required and not cg.forbidden:
-            return None
-        return Goal.from_cube(cg.required, cg.forbidden, target, p.ts)
+        return p.strategy.goal(pos, neg, target)
 
     def step(self, rng: np.random.Generator) -> None:
         self.iterations += 1
@@ -453,13 +578,15 @@ class Stylus:
                  p_rand: float | None = None, p_new: float | None = None, max_active_suffix: int = 4,
                  suffix_budget: int = 1000):
         self.ts = ts
-        self.nba = prune_nba(nba, ts)
-        self.words = ExecutedWords(ts, self.nba, relevant)
-        self.p_rand = ts.scenario.planning.p_rand if p_rand is None else p_rand
-        self.p_new = ts.scenario.planning.p_new if p_new is None else p_new
+        self.strategy = strategy_for(ts, relevant)
+        self.nba = self.strategy.prune(nba)
+        self.words = self.strategy.words(self.nba)
+        self.p_rand = self.strategy.p_rand if p_rand is None else p_rand
+        self.p_new = self.strategy.p_new if p_new is None else p_new
         self.rng = np.random.default_rng(seed)
-        self.sampler = SuccessorSampler(ts, self.rng)
-        self.trans = _Transitions(ts)
+        self.sampler = self.strategy.sampler(self.rng)
+        self.focus = getattr(self.strategy, "focus", 0.0)
+        self.trans = self.strategy.transitions
         self.labels = _Labels(ts, self.nba)
         self.edges = self.nba.edges
         self.acc = accepting_on_cycle(self.nba)
@@ -485,9 +612,6 @@ class Stylus:
             self.d_prefix = d_acc
         self.max_active = max_active_suffix
         self.suffix_budget = suffix_budget
-        self._cubes: dict[tuple[int, int], CubeGoal] = {}
-        self._dlist = ts.dist.tolist()
-        self._dscale = float(ts.dist.max()) * (ts.N + ts.M) + 1.0
         self._new_accepting: list[int] = []
         self._reach: dict[int, list[int]] = {}
         self.prefix_tree: _Tree | None = None
@@ -502,45 +626,10 @@ class Stylus:
             out = []
             for rp, rn in self.return_cubes.get(f, ()):
                 c = (pos | rp, neg | rn)
-                if c not in out and cube_infeasibility(self.ts, c[0], c[1]) is None:
+                if c not in out and self.strategy.cube_infeasibility(c[0], c[1]) is None:
                     out.append(c)
             self._closing[key] = out
         return out
-
-    def cube_steps(self, s: State, cg: CubeGoal) -> float:
-        """Rough number of TS steps until s satisfies the cube (navigate, grasp, transport; the travel
-        distance still needed breaks ties), used to choose among the guard cubes to aim at."""
-        ts = self.ts
-        N = ts.N
-        d = self._dlist
-        steps, dist = 0, 0.0
-        for e, k in cg.required.items():
-            if e < N:
-                if s[e] != k:
-                    steps += 1 + (s[ts.N + ts.M + e] >= 0)
-                    dist += d[s[e]][k]
-            else:
-                j = e - N
-                r = s[e]
-                if r != k:
-                    steps += 1
-                    dist += d[r][k]
-                    team = sum(ts.power[i] for i in range(N) if s[N + ts.M + i] == j)
-                    if team < ts.required_power[j]:
-                        near = sum(ts.power[i] for i in range(N) if s[i] == r and s[N + ts.M + i] < 0)
-                        steps += 1 if team + near >= ts.required_power[j] else 2
-        for e, mask in cg.forbidden.items():
-            if mask >> s[e] & 1 and e not in cg.required:
-                steps += 1 if e < N else 3
-        return steps + dist / self._dscale
-
-    def cube(self, pos: int, neg: int) -> CubeGoal:
-        key = (pos, neg)
-        cg = self._cubes.get(key)
-        if cg is None:
-            cg = cube_goal(self.ts, pos, neg)
-            self._cubes[key] = cg
-        return cg
 
     def _on_new_node(self, tree: _Tree, v: int) -> None:
         if tree is self.prefix_tree and tree.n_q[v] in self.acc:
@@ -664,9 +753,9 @@ class Stylus:
                  "suffix_nodes": sum(t.num_nodes for t in suffix.values()),
                  "sampler": dict(self.sampler.stats)}
         if best[1] < 0:
-            raise UserError(f"no plan found within {it} iterations and {elapsed:.1f} s (STyLuS* is "
-                            "probabilistically complete: raise --iterations or --time-limit, or use --planner "
-                            "exact to decide satisfiability)" + blocked_note(ts))
+            raise NoPlanFound(f"no plan found within {it} iterations and {elapsed:.1f} s; satisfiability unknown "
+                              "(STyLuS* is probabilistically complete: raise --iterations or --time-limit)"
+                              + self.strategy.no_plan_note())
         _, a, v = best
         prefix_nodes = pre.path(a)[:-1]
         tree = suffix[a]
