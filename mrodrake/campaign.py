@@ -76,12 +76,14 @@ class SeedRange:
 
 @dataclass(frozen=True, config=_CFG)
 class Generate:
-    """Generated office scenarios: every (robots, objects, regions) size combination × every seed."""
+    """Generated scenarios: every (robots, objects, regions) size combination × every seed, on the case-study
+    office or on ``map`` (a shipped map name such as ``warehouse``, or a scenario file relative to the spec)."""
 
     robots: list[PosInt]
     objects: list[NonNegInt]
     regions: list[PosInt]
     seeds: SeedRange = dc_field(default_factory=SeedRange)
+    map: Str | None = None
 
 
 @dataclass(frozen=True, config=_CFG)
@@ -210,7 +212,7 @@ def _check_seeds(spec: CampaignSpec, seeds: Seeds, loc: tuple, where: Where) -> 
 
 def _instances(spec: CampaignSpec, where: Where, base: Path) -> list[tuple[ScenarioInstance, Seeds]]:
     """Every scenario of the spec with the seeds of its entry (files loaded, generated ones generated)."""
-    from mrodrake.planning.generate import MAX_K, generate_scenario
+    from mrodrake.planning.generate import MAPS, MAX_K, generate_scenario, load_map
 
     out: list[tuple[ScenarioInstance, Seeds]] = []
     seen: dict[str, tuple] = {}
@@ -241,19 +243,32 @@ def _instances(spec: CampaignSpec, where: Where, base: Path) -> list[tuple[Scena
         for name, values in (("robots", gen.robots), ("objects", gen.objects), ("regions", gen.regions)):
             if not values:
                 raise UserError(f"{where(loc + ('generate', name))}: expected a non-empty list of sizes")
+        map_scenario, max_k, tag = None, MAX_K, ""
+        if gen.map is not None:
+            path = Path(gen.map) if Path(gen.map).is_absolute() else base / gen.map
+            shipped = sorted(p.stem for p in MAPS.glob("*.yaml"))
+            if not path.is_file() and gen.map not in shipped:
+                raise UserError(f"{where(loc + ('generate', 'map'))}: unknown map '{gen.map}' (a shipped map: "
+                                f"{', '.join(shipped)}; or a scenario file relative to the spec)")
+            try:
+                map_scenario = load_map(str(path) if path.is_file() else gen.map)
+            except UserError as e:
+                raise UserError(f"{where(loc + ('generate', 'map'))}: {e}") from None
+            max_k, tag = len(map_scenario.regions), f"_{map_scenario.name}"
         for j, k in enumerate(gen.regions):
-            if k > MAX_K:
-                raise UserError(f"{where(loc + ('generate', 'regions', j))}: at most {MAX_K} regions, got {k}")
+            if k > max_k:
+                raise UserError(f"{where(loc + ('generate', 'regions', j))}: at most {max_k} regions, got {k}")
         for n in gen.robots:
             for m in gen.objects:
                 for k in gen.regions:
                     for seed in gen.seeds.values():
-                        text = f"generate_scenario({n}, {m}, {k}, {seed})"
+                        where_map = "" if gen.map is None else f", map={gen.map!r}"
+                        text = f"generate_scenario({n}, {m}, {k}, {seed}{where_map})"
                         try:
-                            scenario = generate_scenario(n, m, k, seed)
+                            scenario = generate_scenario(n, m, k, seed, map=map_scenario)
                         except (ValueError, UserError) as e:
                             raise UserError(f"{where(loc + ('generate',))}: {text}: {e}") from None
-                        add(ScenarioInstance(scenario.name, f"gen_n{n}_m{m}_k{k}", text, scenario), seeds,
+                        add(ScenarioInstance(scenario.name, f"gen{tag}_n{n}_m{m}_k{k}", text, scenario), seeds,
                             loc + ("generate",))
     return out
 

@@ -74,6 +74,11 @@ ERRORS = [
      "scenarios[0]: give exactly one of 'file' and 'generate'"),
     ("name: x\nscenarios:\n  - generate: {{robots: [2], objects: [1], regions: [13]}}\n", 3,
      "scenarios[0].generate.regions[0]: at most 12 regions, got 13"),
+    ("name: x\nscenarios:\n  - generate: {{robots: [2], objects: [1], regions: [3], map: hangar}}\n", 3,
+     "scenarios[0].generate.map: unknown map 'hangar' (a shipped map: corridor, lab, narrow, warehouse; or a "
+     "scenario file relative to the spec)"),
+    ("name: x\nscenarios:\n  - generate: {{robots: [2], objects: [1], regions: [6], map: lab}}\n", 3,
+     "scenarios[0].generate.regions[0]: at most 5 regions, got 6"),
     ("name: x\nscenarios:\n  - file: {tiny}\nrandomize:\n  robot_mass: [2.0, 1.0]\n", 5,
      "randomize.robot_mass: min 2 is larger than max 1"),
     ("name: x\nscenarios:\n  - file: {tiny}\nrandomize:\n  robot_mass: [0.0, 1.0]\n", 5,
@@ -321,6 +326,19 @@ seeds: {{draws: 2}}
     assert [t.index for t in camp.tasks] == list(range(8))
     assert {t.instance.family for t in camp.tasks} == {"tiny", "gen_n2_m1_k3", "gen_n2_m1_k4"}
     assert camp.tasks[4].instance.source == "generate_scenario(2, 1, 3, 7)"
+
+
+def test_generated_scenarios_on_a_map(tmp_path):
+    camp = load_campaign(write(tmp_path, """
+name: x
+scenarios:
+  - generate: {robots: [2], objects: [1], regions: [3], seeds: {start: 4, count: 2}, map: lab}
+"""))
+    assert [t.mission_id for t in camp.tasks] == ["gen_lab_n2_m1_k3_s4-p0-l0-d0", "gen_lab_n2_m1_k3_s5-p0-l0-d0"]
+    assert {t.instance.family for t in camp.tasks} == {"gen_lab_n2_m1_k3"}
+    assert camp.tasks[0].instance.source == "generate_scenario(2, 1, 3, 4, map='lab')"
+    assert {g.name for g in camp.tasks[0].instance.scenario.regions} <= {
+        g.name for g in load_scenario(ROOT / "scenarios" / "maps" / "lab.yaml").regions}
 
 
 def test_an_exception_during_the_simulation_keeps_what_was_simulated(tmp_path, monkeypatch):

@@ -111,10 +111,12 @@ def local_path(start, goal, centers, radii, rim_center, rim_radius, clearance: f
     """Shortest path of straight legs from ``start`` to ``goal`` inside the disk (rim_center, rim_radius)
     avoiding the disks (centers, radii): waypoints (k, 2), the last one the goal.
 
-    Candidate corners sit on circles of radius (ρ + clearance)/cos(π/n) around each disk (n =
-    ``nodes_per_disk``), so consecutive corners of one disk are joined by chords tangent to the grown circle;
-    a leg is admissible when it stays ``clearance``/2 from every disk (less next to the start or the goal if
-    they are closer than that).  Legs stay in the rim disk by convexity.  Raises ValueError without a path.
+    A leg is admissible when it stays ``need`` = ``clearance``/2 from every disk (less next to the start or
+    the goal if they are closer than that).  Candidate corners sit on two rings around each disk: n =
+    ``nodes_per_disk`` corners at radius (ρ + clearance)/cos(π/n), and 2n at (ρ + need)/cos(π/2n) for gaps
+    (between disks, or a disk and the rim) too narrow for the first; consecutive corners of a ring are joined by
+    chords tangent to its grown circle.  Corners lie within ``need`` of the rim, and legs stay in the rim disk by
+    convexity.  Raises ValueError without a path.
     """
     s = np.asarray(start, dtype=float).reshape(2)
     g = np.asarray(goal, dtype=float).reshape(2)
@@ -133,10 +135,13 @@ def local_path(start, goal, centers, radii, rim_center, rim_radius, clearance: f
         return float(np.min(np.linalg.norm(c - p, axis=1) - rho))
 
     need = min(0.5 * clearance, 0.5 * own_clear(s), 0.5 * own_clear(g))
-    ang = np.arange(nodes_per_disk) * (2.0 * math.pi / nodes_per_disk)
-    ring = np.column_stack([np.cos(ang), np.sin(ang)]) / math.cos(math.pi / nodes_per_disk)
-    corners = (c[:, None, :] + (rho + clearance)[:, None, None] * ring[None, :, :]).reshape(-1, 2)
-    ok = np.linalg.norm(corners - rc, axis=1) <= rim_radius - 0.5 * clearance
+    corners = []
+    for n, offset in ((nodes_per_disk, clearance), (2 * nodes_per_disk, need)):
+        ang = np.arange(n) * (2.0 * math.pi / n)
+        ring = np.column_stack([np.cos(ang), np.sin(ang)]) / math.cos(math.pi / n)
+        corners.append((c[:, None, :] + (rho + offset)[:, None, None] * ring[None, :, :]).reshape(-1, 2))
+    corners = np.vstack(corners)
+    ok = np.linalg.norm(corners - rc, axis=1) <= rim_radius - need
     ok &= np.all(np.linalg.norm(corners[:, None, :] - c[None, :, :], axis=-1) - rho[None, :] >= need, axis=1)
     nodes = np.vstack([s, g, corners[ok]])
     n = len(nodes)
