@@ -21,6 +21,7 @@ import pandas as pd
 from pydrake.common.value import AbstractValue
 from pydrake.systems.analysis import ApplySimulatorConfig, Simulator, SimulatorConfig
 from pydrake.systems.framework import DiagramBuilder, EventStatus, LeafSystem
+from threadpoolctl import threadpool_limits
 
 from mrodrake.control.adaptive import AdaptiveGains
 from mrodrake.errors import UserError
@@ -238,6 +239,8 @@ class Mission:
     def run(self, progress: Callable[[int, int], None] | None = None, t_max: float = 1e7) -> "MissionLog":
         """Simulate until the supervisor ends the mission or ``t_max`` (one ``AdvanceTo``; call again to go
         on); ``progress(done, total)`` is called whenever a plan step completes.  Returns :meth:`log`.
+        BLAS runs single-threaded meanwhile: a multithreaded BLAS sums in an order that depends on the
+        machine's core count, and the mission would too.
 
         A controller fault (:meth:`_Monitor`), an integrator failure or any other exception inside the
         simulation ends the mission as a failed primitive with a one-line reason
@@ -245,7 +248,8 @@ class Mission:
         self._progress, self._last_done = progress, -1
         t0 = time.perf_counter()
         try:
-            self.simulator.AdvanceTo(float(t_max))
+            with threadpool_limits(limits=1, user_api="blas"):  # same rounding on every core count
+                self.simulator.AdvanceTo(float(t_max))
         except Exception as exc:  # noqa: BLE001 - any failure inside the simulation ends the mission cleanly
             self._abort(_simulation_failure(exc))
         finally:
