@@ -115,6 +115,27 @@ def test_robot_navigation_every_ordered_pair(src, dst):
     check_guarantees(r)
 
 
+WAREHOUSE = load_scenario(SCEN / "maps" / "warehouse.yaml")
+
+
+def _in_aisle(r, y0: float, y1: float) -> bool:
+    """Some of the entity's path runs between two shelf rows (x in [12, 48], y in [y0, y1])."""
+    P = r.positions
+    return bool(np.any((P[:, 0] > 14.0) & (P[:, 0] < 46.0) & (P[:, 1] > y0) & (P[:, 1] < y1)))
+
+
+@pytest.mark.parametrize("kind,entity,team,src,dst,aisle", [
+    ("navigate", "r1", [], "p5", "p6", (22.0, 36.0)),
+    ("transport", "o1", ["r1", "r2"], "p1", "p4", (14.0, 20.0)),
+])
+def test_warehouse_aisles_are_travelled(kind, entity, team, src, dst, aisle):
+    """Issue 13, class 5: on the warehouse map (6 m aisles between 2 m shelf rows) a robot and a robots-object
+    team travel along the aisles (the point-world map resolves the passage; no degenerate map)."""
+    r = simulate_transition(WAREHOUSE, kind, entity, team=team, src_region=src, dst_region=dst, t_max=8000.0)
+    check_guarantees(r)
+    assert _in_aisle(r, *aisle)
+
+
 def test_transport_by_two_robots(tmp_path):
     r = simulate_transition(CASE1, "transport", "o1", team=["r1", "r2"], src_region="p2", dst_region="p4",
                             t_max=8000.0)
