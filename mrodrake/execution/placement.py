@@ -130,6 +130,7 @@ class _World:
 class _Placer:
     def __init__(self, ts: TransitionSystem, steps: Sequence[StepSpec], seed: int):
         self.ts, self.steps, self.seed = ts, list(steps), int(seed)
+        self.deferred: set[tuple[int, int]] = set()  # (step, robot): grasps after the step's departures
         sc = ts.scenario
         self.N, self.M, self.K = ts.N, ts.M, ts.K
         self.spacing = sc.layout.spacing
@@ -515,6 +516,12 @@ class _Placer:
                         for i in order:
                             w.grasp[i] = j
                         w.rotation[j] = float(rot)
+                        # a slot inside the covering disk of a team that leaves in this step: that robot, and
+                        # whoever docks after it, docks once the team has left (grasps change no label)
+                        late = [n for n, i in enumerate(order) if self._intruded(
+                            w, k, step, j, slots[team.index(i)], float(self.radii[i]), step + 1)]
+                        if late:
+                            self.deferred.update((step, i) for i in order[late[0]:])
                         return ops + [PlacedOp(OpKind.GRASP, acts[i], i, k, tuple(map(float, w.pos[i])), float(rot),
                                                team) for i in order]
                     w.pos[:] = trial
@@ -587,7 +594,22 @@ class _Placer:
                 if o != i and o not in docking and w.where[o] == k:
                     if math.hypot(*(w.pos[o] - q)) < float(self.radii[o] + self.radii[i]) + sp:
                         return False
+            if any(n > step for n in self._intruded(w, k, step, j, q, float(self.radii[i]), depart)):
+                return False
         return True
+
+    def _intruded(self, w: _World, k: int, step: int, j: int, q, r: float, until: float) -> list[int]:
+        """Steps (from ``step`` up to ``until``, exclusive) at which a team carries another object out of
+        region k while a robot of radius r docked at q (to object j) would be inside its covering disk: the
+        team's start would lie outside its free space."""
+        out = []
+        for n in range(step, int(min(until, len(self.steps)))):
+            for a in self.steps[n].actions:
+                if isinstance(a, Transport) and a.obj != j and a.src == k and w.where[self.N + a.obj] == k:
+                    need = self.ts.covering_radius(a.obj, a.team) + r + self.spacing
+                    if math.hypot(*(w.pos[self.N + a.obj] - np.asarray(q))) < need:
+                        out.append(n)
+        return out
 
     def arrive(self, w: _World, spec: StepSpec, step: int, a) -> list[PlacedOp]:
         ts, N = self.ts, self.N
@@ -752,6 +774,7 @@ class _Placer:
 
     def run(self, initial: np.ndarray) -> Placement:
         w = _World(self.ts, self.steps[0].src if self.steps else self.ts.initial, initial)
+        self.deferred = set()
         out = []
         for step, spec in enumerate(self.steps):
             ops: list[PlacedOp] = []
@@ -764,11 +787,14 @@ class _Placer:
                     grasps.setdefault(a.obj, []).append(a.robot)
             for j, robots in releases.items():
                 ops += self.release(w, spec, step, robots, j)
+            late: list[PlacedOp] = []
             for j, robots in grasps.items():
-                ops += self.grasp(w, spec, step, robots, j)
+                for op in self.grasp(w, spec, step, robots, j):
+                    (late if op.kind is OpKind.GRASP and (step, op.entity) in self.deferred else ops).append(op)
             for a in spec.actions:
                 if isinstance(a, (Navigate, Transport)):
                     ops += self.arrive(w, spec, step, a)
+            ops += late
             out.append(StepPlacement(spec, tuple(ops), tuple(map(tuple, w.pos.tolist()))))
         return Placement(tuple(map(tuple, initial.tolist())), tuple(out))
 

@@ -16,7 +16,8 @@ from mrodrake.execution.steps import expand_steps
 ROOT = Path(__file__).resolve().parents[2]
 
 
-@pytest.fixture(scope="module", params=["case_study_1", "case_study_2"])
+# case II (about twice case I's simulation) is in the slow set, to keep the default suite within its budget
+@pytest.fixture(scope="module", params=["case_study_1", pytest.param("case_study_2", marks=pytest.mark.slow)])
 def mission(request, tmp_path_factory):
     from mrodrake.planning.plan import plan_scenario
     from mrodrake.scenario import load_scenario
