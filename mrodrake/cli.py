@@ -17,7 +17,6 @@ from mrodrake.errors import UserError
 
 def _cmd_validate(args: argparse.Namespace) -> int:
     from mrodrake.scenario import load_scenario
-
     from mrodrake.ts import TransitionSystem
 
     for path in args.scenarios:
@@ -53,8 +52,8 @@ def _cmd_ts(args: argparse.Namespace) -> int:
 
 def _write_ts_json(ets, out) -> None:
     ts = ets.ts
-    out.write('{"scenario": %s, "propositions": %s, "initial": 0,\n "states": [\n'
-              % (json.dumps(ts.scenario.name), json.dumps(ts.propositions)))
+    name, props = json.dumps(ts.scenario.name), json.dumps(ts.propositions)
+    out.write(f'{{"scenario": {name}, "propositions": {props}, "initial": 0,\n "states": [\n')
     for u in range(ets.num_states):
         s = ets.state(u)
         d = ts.state_dict(s)
@@ -119,9 +118,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=_cmd_ts)
 
     from mrodrake import campaign
+    from mrodrake import run as run_cli
     from mrodrake.logic import cli as logic_cli
     from mrodrake.planning import cli as plan_cli
-    from mrodrake import run as run_cli
 
     logic_cli.add_subparser(sub)
     plan_cli.add_subparser(sub)

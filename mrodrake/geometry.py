@@ -7,8 +7,8 @@ Used by the scenario validator, the transition system (covering radii r_A,j) and
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Sequence
 
 import numpy as np
 import shapely

@@ -24,8 +24,8 @@ Every random choice uses ``numpy.random.default_rng(seed)``; results are determi
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from functools import lru_cache
-from typing import Sequence
 
 import numpy as np
 from scipy.optimize import minimize
@@ -470,7 +470,7 @@ def benchmark(repeats: int = 5) -> list[tuple[str, float, float]]:
                for k in range(3) for t in itertools.combinations_with_replacement((1.7, 1.8, 1.9), k)
                for nr in range(5) for no in range(4) if k + nr + no > 0]
     cases = [
-        ("typical R=4 (all %d multisets)" % len(typical), [(4.0, t) for t in typical]),
+        (f"typical R=4 (all {len(typical)} multisets)", [(4.0, t) for t in typical]),
         ("10 equal, R/r = 1.02 x 3.8130", [(3.8130 * 1.02, [1.0] * 10)]),
         ("10 equal, R/r = 0.99 x 3.8130", [(3.8130 * 0.99, [1.0] * 10)]),
         ("14 equal, R/r = 0.99 x 4.3284 (search exhausts)", [(4.3284 * 0.99, [1.0] * 14)]),

@@ -13,8 +13,8 @@ import argparse
 import signal
 import sys
 import time
+from collections.abc import Callable
 from pathlib import Path
-from typing import Callable
 
 from mrodrake.errors import UserError
 from mrodrake.planning.plan import plan_scenario

@@ -540,7 +540,8 @@ def design_range_warnings(s: Scenario, where: Where | None = None) -> list[str]:
                            f"m̂_0 = control.m_hat0 = {c.m_hat0:g} kg)")
             alpha = b.friction.alpha_bound
             if alpha > c.alpha_max:
-                out.append(f"{where((group, i, 'friction', 'scale'))}: friction bound α = {alpha:g} ({b.friction.model} "
+                out.append(f"{where((group, i, 'friction', 'scale'))}: friction bound α = {alpha:g} "
+                           f"({b.friction.model} "
                            f"model, scale {b.friction.scale:g}) outside the design range α ≤ {c.alpha_max:g} per body "
                            f"of the controllers (control.alpha_max)")
     return out

@@ -61,8 +61,9 @@ neighbourhood, instead of one τ for the whole map.  The start is kept outside e
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import NamedTuple, Sequence
+from typing import NamedTuple
 
 import numpy as np
 
@@ -101,7 +102,7 @@ class AdaptiveGains:
     alpha_max: float = 0.0
 
     @classmethod
-    def from_scenario(cls, control) -> "AdaptiveGains":
+    def from_scenario(cls, control) -> AdaptiveGains:
         """From the scenario's ``control`` section (:class:`mrodrake.scenario.ControlGains`)."""
         return cls(control.k_phi, control.k_v, control.k_m, control.k_alpha, control.m_hat0, control.alpha_hat0,
                    control.alpha_max)
@@ -288,7 +289,7 @@ class NavigationTask:
     @classmethod
     def build(cls, pw_map, goal, gains: AdaptiveGains, *, k1: float, k2: float, r_bar_cap: float,
               tau_cap: float, cf: Sequence[float] | int = 1, start=None, v_max: float = V_MAX,
-              label: str = "") -> "NavigationTask":
+              label: str = "") -> NavigationTask:
         """Task for workspace goal x_d on map H: χ_d = H(x_d), b_ℓ the map's hole points, φ with per-barrier
         regions of influence (:func:`local_barriers`, caps ρ ≤ r_bar_cap, τ ≤ tau_cap) and the circle
         barrier at ρ₀ = 1 − κ δ_max (:func:`circle_radius`, δ_max the map's ``circle_deficit``).
@@ -317,8 +318,8 @@ class NavigationTask:
         if outside_free_set(phi):
             return self._fault(x, xdot, "is outside the free set (past a barrier of the navigation function)")
         if not (np.all(np.isfinite(v_raw)) and np.all(np.isfinite(vdot_raw))):
-            return self._fault(x, xdot, f"is where the point-world map is degenerate (det J_H = {np.linalg.det(J):.3g}):"
-                                  " the entity left the region the map resolves")
+            return self._fault(x, xdot, f"is where the point-world map is degenerate "
+                                  f"(det J_H = {np.linalg.det(J):.3g}): the entity left the region the map resolves")
         v_d, vdot_d = saturate_velocity(v_raw, vdot_raw, self.v_max)
         e_v = xdot - v_d
         u = navigation_input(J, grad, vdot_d, e_v, m_hat, alpha_hat, g.k_phi, g.k_v)

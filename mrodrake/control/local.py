@@ -32,8 +32,8 @@ tangential curvature there is 2k1(1 − ‖x − x_d‖/‖x − c_ℓ‖) < 0 (
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Sequence
 
 import numpy as np
 from scipy.sparse.csgraph import dijkstra

@@ -97,7 +97,7 @@ class Barriers:
     cnorm: np.ndarray
 
     @classmethod
-    def make(cls, rim_center, rim_radius: float, centers, radii, taus) -> "Barriers":
+    def make(cls, rim_center, rim_radius: float, centers, radii, taus) -> Barriers:
         c = np.vstack([np.reshape(np.asarray(rim_center, dtype=float), (1, 2)),
                        np.asarray(centers, dtype=float).reshape(-1, 2)])
         rho = np.concatenate([[float(rim_radius)], np.asarray(radii, dtype=float).reshape(-1)])
@@ -107,7 +107,8 @@ class Barriers:
         return cls(c, rho * rho, sign, np.where(t > 0.0, t, -np.inf), np.hypot(c[:, 0], c[:, 1]))
 
 
-def phi_terms(chi: np.ndarray, goal: np.ndarray, bar: Barriers, k1: float, k2: float) -> tuple[float, np.ndarray, np.ndarray]:
+def phi_terms(chi: np.ndarray, goal: np.ndarray, bar: Barriers, k1: float,
+              k2: float) -> tuple[float, np.ndarray, np.ndarray]:
     """(φ, ∇φ, ∇²φ) at χ of φ = k1‖χ − χ_d‖² + k2 Σ_ℓ (β_ℓ(d_ℓ) − 1) with the rim barrier
     d_0 = R² − ‖χ − c_0‖² and disk barriers d_ℓ = ‖χ − c_ℓ‖² − ρ_ℓ² (ρ_ℓ = 0: the point obstacles b_ℓ of the
     point world), :class:`Barriers` ``bar``.
@@ -157,7 +158,7 @@ class NavigationFunction:
 
     @classmethod
     def for_goal(cls, goal, obstacles, *, k1: float = 1.0, k2: float = 1.0, r_bar_cap: float = R_BAR_CAP,
-                 tau_cap: float | None = None, fraction: float = TAU_FRACTION) -> "NavigationFunction":
+                 tau_cap: float | None = None, fraction: float = TAU_FRACTION) -> NavigationFunction:
         """φ with τ chosen by ``select_tau`` from the actual b_ℓ."""
         if not (k1 > 0 and k2 > 0):
             raise ValueError("k1 and k2 must be positive")
@@ -167,13 +168,14 @@ class NavigationFunction:
         return cls(goal, obstacles, tau, k1, k2, rb, rd)
 
     @classmethod
-    def for_map(cls, pw_map, x_goal, **kwargs) -> "NavigationFunction":
+    def for_map(cls, pw_map, x_goal, **kwargs) -> NavigationFunction:
         """φ for a workspace goal x_d: χ_d = H(x_d), b_ℓ = the map's hole points."""
         return cls.for_goal(pw_map(np.asarray(x_goal, dtype=float)), pw_map.hole_points, **kwargs)
 
     def __post_init__(self):
         b = self.obstacles
-        object.__setattr__(self, "_bar", Barriers.make(_ORIGIN, 1.0, b, np.zeros(len(b)), np.full(len(b) + 1, self.tau)))
+        object.__setattr__(self, "_bar",
+                           Barriers.make(_ORIGIN, 1.0, b, np.zeros(len(b)), np.full(len(b) + 1, self.tau)))
 
     def evaluate(self, chi) -> tuple[float, np.ndarray, np.ndarray]:
         """(φ, ∇φ, ∇²φ) at χ (shape (2,)); only barriers with d_ℓ(χ) < τ contribute (β' = β'' = 0 beyond)."""

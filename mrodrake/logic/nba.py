@@ -10,7 +10,7 @@ at https://adl.github.io/hoaf/); :mod:`mrodrake.logic.hoa` reads it.
 
 from __future__ import annotations
 
-from typing import Iterable, Sequence
+from collections.abc import Iterable, Sequence
 
 from mrodrake.errors import UserError
 from mrodrake.logic import ltl
@@ -225,7 +225,7 @@ class NBA:
         return True
 
     # -- conversions ------------------------------------------------------------------------------------
-    def with_ap(self, ap: Sequence[str], missing: str = "error") -> "NBA":
+    def with_ap(self, ap: Sequence[str], missing: str = "error") -> NBA:
         """The same automaton over the proposition order ``ap`` (masks re-indexed).
 
         Propositions of ``ap`` that the automaton does not use simply never appear in guards.  A
@@ -299,6 +299,6 @@ def _quote(s: str) -> str:
     return '"' + s.replace("\\", "\\\\").replace('"', '\\"') + '"'
 
 
-def empty_nba(ap: Sequence[str]) -> "NBA":
+def empty_nba(ap: Sequence[str]) -> NBA:
     """The one-state automaton over ``ap`` without edges (empty language)."""
     return NBA(tuple(ap), 0, (), [[]])

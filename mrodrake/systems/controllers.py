@@ -12,8 +12,9 @@ abstract ``task`` input (a :class:`TaskCommand`), which a supervisor drives: ``N
 controller (zero inputs, frozen estimates, so idle controllers do not drift), and a new *episode* resets the
 estimates to the task's m̂(0), α̂(0) (``gains.initial_estimates(bodies)``: α̂(0) at the design bound of the
 entity's bodies, 1 for a robot, 1 + members for a team) at the start of the next step (a per-step
-unrestricted update on the controller's own state), while a new task within the same episode keeps them.  So one controller per robot
-(and per team used by a plan) can stay wired for a whole mission while the supervisor only swaps tasks.
+unrestricted update on the controller's own state), while a new task within the same episode keeps them.  So one
+controller per robot (and per team used by a plan) can stay wired for a whole mission while the supervisor only
+swaps tasks.
 
 One cache entry evaluates the law (map, φ, v_d, v̇_d) once per context change; the outputs and the
 estimate derivatives all read it (one map evaluation per derivative evaluation of the closed loop).
@@ -21,7 +22,7 @@ estimate derivatives all read it (one map evaluation per derivative evaluation o
 
 from __future__ import annotations
 
-from typing import Sequence
+from collections.abc import Sequence
 
 import numpy as np
 from pydrake.common.value import AbstractValue

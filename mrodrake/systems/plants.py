@@ -23,7 +23,7 @@ version changes (an event may change only its own system's state), and a parked 
 from __future__ import annotations
 
 import math
-from typing import Sequence
+from collections.abc import Sequence
 
 import numpy as np
 from pydrake.common.value import AbstractValue
@@ -110,7 +110,7 @@ class RobotPlant(_PointMassPlant):
         self.state_port = self.DeclareStateOutputPort("state", ContinuousStateIndex(0))
 
     @classmethod
-    def from_scenario(cls, scenario: Scenario, robot: str | int) -> "RobotPlant":
+    def from_scenario(cls, scenario: Scenario, robot: str | int) -> RobotPlant:
         r = scenario.robots[robot if isinstance(robot, int) else scenario.robot_names.index(robot)]
         return cls(r.mass, r.friction, name=r.name)
 
@@ -136,7 +136,7 @@ class ObjectPlant(_PointMassPlant):
         self.state_port = self.DeclareStateOutputPort("state", ContinuousStateIndex(0))
 
     @classmethod
-    def from_scenario(cls, scenario: Scenario, obj: str | int) -> "ObjectPlant":
+    def from_scenario(cls, scenario: Scenario, obj: str | int) -> ObjectPlant:
         o = scenario.objects[obj if isinstance(obj, int) else scenario.object_names.index(obj)]
         return cls(o.mass, o.friction, name=o.name)
 
@@ -180,7 +180,7 @@ class CoupledPlant(_PointMassPlant):
         ]
 
     @classmethod
-    def from_scenario(cls, scenario: Scenario, obj: str | int, team: Sequence[str | int], offsets=None) -> "CoupledPlant":
+    def from_scenario(cls, scenario: Scenario, obj: str | int, team: Sequence[str | int], offsets=None) -> CoupledPlant:
         """Team plant of object ``obj`` and robots ``team`` (offsets default: ``geometry.grasp_layout``)."""
         from mrodrake.geometry import grasp_layout
 
@@ -272,7 +272,8 @@ class SyncedCoupledPlant(CoupledPlant):
 
     def _offsets(self, context) -> np.ndarray:
         off = self.sync_port.Eval(context).offsets
-        return np.asarray(off, dtype=float).reshape(len(self.members), 2) if len(off) else np.zeros((len(self.members), 2))
+        n = len(self.members)
+        return np.asarray(off, dtype=float).reshape(n, 2) if len(off) else np.zeros((n, 2))
 
     def _member_out(self, k: int):
         def calc(context, output):

@@ -42,7 +42,10 @@ def room_map():
     return PointWorldMap.build(ROOM)
 
 
-def make_task(pw, start=START, goal=GOAL, v_max=2.0, gains=AdaptiveGains(), cf=1):
+DEFAULT_GAINS = AdaptiveGains()
+
+
+def make_task(pw, start=START, goal=GOAL, v_max=2.0, gains=DEFAULT_GAINS, cf=1):
     return NavigationTask.build(pw, goal, gains, k1=1.0, k2=1.0, r_bar_cap=0.1, tau_cap=0.01, cf=cf,
                                 start=start, v_max=v_max)
 

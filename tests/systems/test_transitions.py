@@ -34,12 +34,12 @@ from shapely.geometry import LineString, Point, box
 from mrodrake.control.adaptive import AdaptiveGains, NavigationTask
 from mrodrake.control.freespace import Disk, clearances, inside_region
 from mrodrake.control.pointworld import PointWorldMap
+from mrodrake.control.tasks import entity_layout
 from mrodrake.errors import UserError
+from mrodrake.execution.commands import TaskCommand
 from mrodrake.geometry import polygon
 from mrodrake.scenario import DESIGN_MASS_RATIO, load_scenario
-from mrodrake.execution.commands import TaskCommand
 from mrodrake.systems.controllers import NavigationController, TransportController
-from mrodrake.control.tasks import entity_layout
 from mrodrake.systems.transition import simulate_transition
 from mrodrake.viz.figures import figure_signals, figure_trajectory
 
@@ -80,8 +80,8 @@ def min_clearance(r) -> tuple[float, str]:
     seg = [(boundary.exterior.distance(path) - r.radius, "wall (polyline)")]
     seg += [(polygon(o.polygon).distance(path) - r.radius, o.name + " (polyline)") for o in s.workspace.obstacles]
     seg += [(Point(d.center).distance(path) - d.radius - r.radius, d.name + " (polyline)") for d in r.others]
-    seg += [(Point(s.regions[k].center).distance(path) - s.regions[k].radius - r.radius, s.regions[k].name + " (polyline)")
-            for k in avoid]
+    seg += [(Point(s.regions[k].center).distance(path) - s.regions[k].radius - r.radius,
+             s.regions[k].name + " (polyline)") for k in avoid]
     return min([worst, *seg])
 
 
@@ -141,7 +141,8 @@ def test_transport_by_three_robots():
 
 @pytest.mark.slow
 @pytest.mark.parametrize("obj,team,src,dst", [("o1", ["r1", "r3"], "p2", "p1"), ("o2", ["r2", "r3"], "p1", "p4"),
-                                               ("o1", ["r2", "r3"], "p2", "p3"), ("o2", ["r3", "r1", "r2"], "p1", "p2")])
+                                               ("o1", ["r2", "r3"], "p2", "p3"),
+                                               ("o2", ["r3", "r1", "r2"], "p1", "p2")])
 def test_more_transports(obj, team, src, dst):
     check_guarantees(simulate_transition(CASE1, "transport", obj, team=team, src_region=src, dst_region=dst,
                                          t_max=8000.0))
