@@ -369,6 +369,14 @@ fits.cache_info = _pack_sorted.cache_info  # type: ignore[attr-defined]
 fits.cache_clear = _pack_sorted.cache_clear  # type: ignore[attr-defined]
 
 
+def entities_fit(region_radius: float, radii, spacing: float) -> bool:
+    """P_{s,0} with the layout spacing: disks of ``radii`` fit in the region keeping ``spacing`` between
+    any two of them and between each and the region's rim (radii inflated by spacing/2, container
+    shrunk by spacing/2)."""
+    half = 0.5 * spacing
+    return fits(region_radius - half, sorted((float(r) + half for r in radii), reverse=True))
+
+
 def _spread(c: np.ndarray, r: np.ndarray, fc: np.ndarray, fr: np.ndarray) -> np.ndarray:
     """Increase the minimum gap t of the new disks (pairwise, to fixed disks, to the unit rim) with a
     few SLSQP steps on max t s.t. every gap >= t (rim gaps in the smooth form

@@ -394,16 +394,6 @@ def scenario_from_dict(data: dict[str, Any], source: str = "<dict>") -> Scenario
 # --------------------------------------------------------------------------------------------------
 
 
-def entities_fit(region_radius: float, radii, spacing: float) -> bool:
-    """P_{s,0} with the layout spacing: disks of ``radii`` fit in the region keeping ``spacing`` between
-    any two of them and between each and the region's rim (radii inflated by spacing/2, container
-    shrunk by spacing/2)."""
-    from mrodrake.packing import fits
-
-    half = 0.5 * spacing
-    return fits(region_radius - half, sorted((float(r) + half for r in radii), reverse=True))
-
-
 def _check_names(s: Scenario, where: Where) -> None:
     seen: dict[str, tuple] = {}
     for group in ("robots", "objects", "regions"):
@@ -476,6 +466,8 @@ def _check_geometry(s: Scenario, where: Where) -> None:
 
 
 def _check_initial(s: Scenario, where: Where) -> None:
+    from mrodrake.packing import entities_fit
+
     regions = {g.name: g for g in s.regions}
     members: dict[str, list[float]] = {g: [] for g in regions}
     for group in ("robots", "objects"):

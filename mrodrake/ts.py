@@ -39,7 +39,8 @@ from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import breadth_first_order
 
 from mrodrake.geometry import RegionGraph, grasp_layout, polygon
-from mrodrake.scenario import Scenario, entities_fit
+from mrodrake.packing import entities_fit
+from mrodrake.scenario import Scenario
 
 State = tuple
 

@@ -25,7 +25,8 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from mrodrake.scenario import Scenario, entities_fit, load_scenario, scenario_from_dict
+from mrodrake.packing import entities_fit
+from mrodrake.scenario import Scenario, load_scenario, scenario_from_dict
 
 ROOT = Path(__file__).resolve().parents[2] / "scenarios"
 OFFICE = ROOT / "case_study_1.yaml"
