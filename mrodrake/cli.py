@@ -88,12 +88,6 @@ def _progress_callback(desc: str):
     return update
 
 
-def _cmd_bench(args: argparse.Namespace) -> int:
-    from mrodrake import bench
-
-    return bench.run(args.what, args)
-
-
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="mrodrake",
@@ -117,7 +111,7 @@ def build_parser() -> argparse.ArgumentParser:
                    "(with costs and actions) as JSON")
     p.set_defaults(func=_cmd_ts)
 
-    from mrodrake import campaign
+    from mrodrake import bench, campaign
     from mrodrake import run as run_cli
     from mrodrake.logic import cli as logic_cli
     from mrodrake.planning import cli as plan_cli
@@ -126,17 +120,7 @@ def build_parser() -> argparse.ArgumentParser:
     plan_cli.add_subparser(sub)
     run_cli.add_subparser(sub)
     campaign.add_subparser(sub)
-
-    p = sub.add_parser("bench", help="benchmarks (not tests)", description="Run a benchmark and print a table: "
-                       "ts (TS construction), ltl (LTL->NBA vs Spot), plan (planners), control (map and one "
-                       "navigation), replay (HTML replay), run (whole mission; case I unless --scenario).")
-    p.add_argument("what", choices=["ts", "ltl", "plan", "control", "replay", "run"], help="what to benchmark")
-    p.add_argument("--scenario", metavar="FILE", default=None,
-                   help="scenario of `bench run` (default: scenarios/case_study_1.yaml)")
-    p.add_argument("--stylus-default", action="store_true",
-                   help="`bench plan`: STyLuS*'s default problem (100 robots, 1000-state random TS) instead")
-    p.add_argument("--seeds", type=int, default=None, metavar="N", help="`bench plan`: seeds per problem (default 3)")
-    p.set_defaults(func=_cmd_bench)
+    bench.add_subparser(sub)
     return parser
 
 

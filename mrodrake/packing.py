@@ -466,38 +466,3 @@ def place(region_radius: float, fixed_centres: np.ndarray, fixed_radii: Sequence
     out = np.empty((len(r), 2))
     out[order] = sol
     return out
-
-
-def benchmark(repeats: int = 5) -> list[tuple[str, float, float]]:
-    """Time uncached P_s decisions and one typical place() for ``mrodrake bench``: rows (case, median
-    ms, max ms) over ``repeats`` runs, the cache cleared before every decision."""
-    import itertools
-    import time
-
-    typical = [list(t) + [0.75] * nr + [0.2] * no
-               for k in range(3) for t in itertools.combinations_with_replacement((1.7, 1.8, 1.9), k)
-               for nr in range(5) for no in range(4) if k + nr + no > 0]
-    cases = [
-        (f"typical R=4 (all {len(typical)} multisets)", [(4.0, t) for t in typical]),
-        ("10 equal, R/r = 1.02 x 3.8130", [(3.8130 * 1.02, [1.0] * 10)]),
-        ("10 equal, R/r = 0.99 x 3.8130", [(3.8130 * 0.99, [1.0] * 10)]),
-        ("14 equal, R/r = 0.99 x 4.3284 (search exhausts)", [(4.3284 * 0.99, [1.0] * 14)]),
-    ]
-    rows = []
-    fc = np.array([[2.1, 0.0], [-2.1, 0.0]])
-    times = []
-    for seed in range(repeats):
-        t0 = time.perf_counter()
-        place(4.0, fc, [1.85, 1.85], [0.75, 0.75, 0.2], seed=seed, margin=0.05)
-        times.append(time.perf_counter() - t0)
-    rows.append(("place 3 new next to 2 fixed, margin 0.05", 1e3 * float(np.median(times)), 1e3 * max(times)))
-    for name, calls in cases:
-        times = []
-        for _ in range(repeats):
-            for R, radii in calls:
-                _pack_sorted.cache_clear()
-                t0 = time.perf_counter()
-                fits(R, radii)
-                times.append(time.perf_counter() - t0)
-        rows.append((name, 1e3 * float(np.median(times)), 1e3 * float(np.max(times))))
-    return rows

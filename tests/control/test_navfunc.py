@@ -8,7 +8,7 @@ import shapely
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from mrodrake.control.bench_map import office_like_free_space
+from mrodrake.bench.control import office_like_free_space
 from mrodrake.control.navfunc import (
     NavigationFunction,
     beta,
