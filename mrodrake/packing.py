@@ -1,5 +1,5 @@
-"""Circle packing procedure P_s = [P_{s,0}, P_{s,1}] (paper Sec. III-A, the paragraph after the grasp
-and release definitions): do non-overlapping disks with given radii fit in a region disk, and where.
+"""Circle packing procedure P_s = [P_{s,0}, P_{s,1}] (paper Sec. II-B, the paragraph after
+the grasping and releasing definitions): do non-overlapping disks with given radii fit in a region disk, and where.
 
 P_s is **sound but incomplete**.  Deciding whether disks fit in a disk is NP-hard in general, so a "no"
 means "no packing found" (or a proven necessary condition fails), while every "yes" carries centres

@@ -1,4 +1,4 @@
-"""The coupled multi-robot-object transition system TS (paper Definition 4, Section III-B).
+"""The coupled multi-robot-object transition system TS (paper Definition 4, Sec. III-B).
 
 A state is a flat tuple of ints ``(k_1..k_N, k^o_1..k^o_M, g_1..g_N)``: the region index of every
 robot, the region index of every object, and the object each robot grasps (−1 for none).  This is the

@@ -1,9 +1,9 @@
-"""2nd-order navigation function in the point world (paper Sec. III-A: Def. 2nd-order NF, eq. (beta_exps),
-Proposition 1, eq. (v_d)).
+"""2nd-order navigation function in the point world (paper Sec. III-A: Def. 3, eq. (8),
+Proposition 1, eq. (9)).
 
 φ(χ) = k1‖χ − χ_d‖² + k2 Σ_{ℓ∈J̄0} (β(d_ℓ(χ)) − β(τ)),  d_ℓ = ‖χ − b_ℓ‖² (ℓ ≥ 1), d_0 = 1 − ‖χ‖².
 
-β is the polynomial barrier of eq. (beta_exps) with its region of influence scaled to τ:
+β is the polynomial barrier of eq. (8) with its region of influence scaled to τ:
 β(x) = 1 / P(x/τ), P(s) = 6s⁵ − 15s⁴ + 10s³, for x < τ and β(x) = 1 for x ≥ τ.  The constant β(τ) = 1 is
 subtracted in φ so that φ(χ_d) = 0 (property 2 of the definition); this shifts φ only, ∇φ is unchanged.
 """
@@ -21,7 +21,7 @@ _ORIGIN = np.zeros(2)
 
 
 def beta(x, tau: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """β(x), β'(x), β''(x) of eq. (beta_exps) with region of influence τ (x > 0; vectorised).
+    """β(x), β'(x), β''(x) of eq. (8) with region of influence τ (x > 0; vectorised).
 
     C² at x = τ: P(1) = 1, P'(1) = P''(1) = 0.
     """
@@ -51,7 +51,7 @@ def r_bar_max(obstacles: np.ndarray) -> float:
 
 
 def r_bar_d(goal: np.ndarray, obstacles: np.ndarray) -> float:
-    """r̄_d of eq. (bar_r_d): min(1 − ‖χ_d‖², min_ℓ d_ℓ(χ_d))."""
+    """r̄_d of eq. (7): min(1 − ‖χ_d‖², min_ℓ d_ℓ(χ_d))."""
     g = np.asarray(goal, dtype=float)
     b = np.asarray(obstacles, dtype=float).reshape(-1, 2)
     r = 1.0 - float(g @ g)
@@ -146,7 +146,7 @@ def outside_free_set(phi: float) -> bool:
 
 @dataclass(frozen=True)
 class NavigationFunction:
-    """φ of Def. 2nd-order NF for goal χ_d, point obstacles b_ℓ and the unit-circle boundary."""
+    """φ of Def. 3 for goal χ_d, point obstacles b_ℓ and the unit-circle boundary."""
 
     goal: np.ndarray
     obstacles: np.ndarray
@@ -192,7 +192,7 @@ class NavigationFunction:
 
 
 def desired_velocity(pw_map, nf: NavigationFunction, x, xdot):
-    """v_d = −J_H(x)⁻¹ ∇φ(H(x)) (eq. (v_d)) and its exact time derivative along ẋ.
+    """v_d = −J_H(x)⁻¹ ∇φ(H(x)) (eq. (9)) and its exact time derivative along ẋ.
 
     With χ̇ = J ẋ, J̇ = Σ_i ∂J/∂x_i ẋ_i (the Hessians of H) and J v_d = −∇φ:
     v̇_d = −J⁻¹ (∇²φ χ̇ + J̇ v_d).  Returns (v_d, v̇_d, J_H, ∇φ, φ); φ = +∞ (NaN v_d) past a barrier's pole.

@@ -1,10 +1,11 @@
 """Plan-wide placement: every goal, grasp and back-off point of the executed run, fixed before simulating.
 
-The paper leaves the continuous goals of a transition to P_s (Sec. III-A): "a goal point in the target
-region, given the entities there".  Chosen one arrival at a time during execution, such goals can leave no
-room for what the plan brings later (a team needs its covering disk free around its object, a later arrival
-its slot).  :func:`place_run` walks the whole executed run (prefix and suffix cycles) once, in the order the
-sequencer will execute it, and fixes for every primitive where its entity ends:
+The paper leaves the continuous goals of a transition to P_s (Sec. III-A: the desired goal "will be provided
+by the procedure P_s"), a goal point in the target region given the entities there.  Chosen one arrival at a
+time during execution, such goals can leave no room for what the plan brings later (a team needs its covering
+disk free around its object, a later arrival its slot).  :func:`place_run` walks the whole executed run (prefix
+and suffix cycles) once, in the order the sequencer will execute it, and fixes for every primitive where its
+entity ends:
 
 * a release: the back-off spot of the robot (clear of its object's reserved team disk);
 * a grasp: the docking point on the team layout around the object (the layout of the object's next

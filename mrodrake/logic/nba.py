@@ -1,4 +1,4 @@
-"""Nondeterministic Büchi automata with symbolic guards (paper Def. 2), DNF guards and the HOA v1 writer.
+"""Nondeterministic Büchi automata with symbolic guards (paper Def. 5), DNF guards and the HOA v1 writer.
 
 In an :class:`NBA` a guard is a DNF, a tuple of cubes ``(pos_mask, neg_mask)`` over the automaton's atomic
 propositions (bit ``1 << i`` <-> ``ap[i]``); a letter (integer mask of the true propositions) satisfies a
@@ -70,7 +70,7 @@ def _guard_holds(guard: Sequence[Cube], label: int) -> bool:
 
 
 class NBA:
-    """A nondeterministic Büchi automaton with state-based acceptance and symbolic guards (paper Def. 2).
+    """A nondeterministic Büchi automaton with state-based acceptance and symbolic guards (paper Def. 5).
 
     * states are ``0..num_states-1``; ``initial`` is the single initial state;
     * ``accepting`` is the frozenset of accepting (final) states;

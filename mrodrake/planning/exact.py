@@ -1,4 +1,4 @@
-"""Exact optimal prefix-suffix planning on the explicit product (paper Section III-B, graph search).
+"""Exact optimal prefix-suffix planning on the explicit product (paper Sec. III-B, graph search).
 
 The optimal plan in prefix-suffix form minimises ``cost(prefix) + cost(suffix)`` over the accepting
 product states ``a``: the prefix is a shortest path from the initial product state to ``a`` and the

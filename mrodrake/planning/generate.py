@@ -9,7 +9,7 @@ and K of the map's own regions (centres, radii and names), chosen by the seed.
 
 It then draws N robots and M objects with powers and required powers such that a team of at most three
 robots can move every object, puts them in random regions where they fit (P_s), and writes a random task
-of the paper's shape (Section IV): ``G F ψ_a & G F ψ_b & F ψ_c & (!ψ_d U ψ_e) & G !ψ_f`` over macros ψ
+of the paper's shape (Sec. IV): ``G F ψ_a & G F ψ_b & F ψ_c & (!ψ_d U ψ_e) & G !ψ_f`` over macros ψ
 that are conjunctions of ``<entity>_<region>`` propositions.
 
 Entity sizes: robots of radius 0.75 m and objects of radius 0.2-0.4 m on the office.  On a map both are

@@ -1,4 +1,4 @@
-"""Plans in prefix-suffix form (paper Section III-B, Table I): the contract between planning and execution.
+"""Plans in prefix-suffix form (paper Sec. III-B, Table I): the contract between planning and execution.
 
 A :class:`Plan` is the TS run ``prefix (suffix)^ω`` together with the NBA run that accepts its trace.
 The run is ``prefix + suffix + suffix + ...``: its first state is the TS's initial state (with the NBA's

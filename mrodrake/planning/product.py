@@ -1,4 +1,4 @@
-"""Product Büchi automaton PBA = TS ⊗ NBA (paper Section III-B, Def. PBA), on the fly or explicit.
+"""Product Büchi automaton PBA = TS ⊗ NBA (paper Sec. III-B, Def. 6), on the fly or explicit.
 
 A product state is a pair ``(s, q)`` of a TS state and an NBA state.  The paper's product reads the label
 of the source state, (s, q) → (s', q') iff s → s' and q' ∈ δ(q, L(s)); ours reads the word that sequential

@@ -1,6 +1,6 @@
-"""Adaptive navigation / transport controllers as Drake LeafSystems (paper Section III-A).
+"""Adaptive navigation / transport controllers as Drake LeafSystems (paper Sec. III-A).
 
-Continuous state: the adaptation estimates [m̂, α̂] (eq. adaptation law).  Inputs: ``state`` ([x, ẋ] of the
+Continuous state: the adaptation estimates [m̂, α̂] (eq. (11)).  Inputs: ``state`` ([x, ẋ] of the
 moving entity: the robot, or the object of a robots-object team) and an optional abstract ``task``.
 Outputs: ``u`` (navigation) or ``u_<member>`` per team member (transport, u_ℓ = cf_ℓ u), and ``estimates``.
 
@@ -120,7 +120,7 @@ class _AdaptiveController(LeafSystem):
 
 
 class NavigationController(_AdaptiveController):
-    """Adaptive navigation law of one robot (paper Sec. III-A 1)): output ``u`` (2)."""
+    """Adaptive navigation law of one robot (paper Sec. III-A, 1) Robot Navigation): output ``u`` (2)."""
 
     def __init__(self, task: NavigationTask | None = None, gains: AdaptiveGains | None = None,
                  name: str = "navigation_controller"):
@@ -132,9 +132,10 @@ class NavigationController(_AdaptiveController):
 
 
 class TransportController(_AdaptiveController):
-    """Adaptive transport law of a robots-object team (paper Sec. III-A 2)): the navigation law of the
-    coupled entity with estimates m̂_A,j, α̂_A,j, split as u_ℓ = cf_ℓ u to outputs ``u_<member>``; the
-    total entity input is also available as ``u``.  ``task.cf`` must have one entry per member."""
+    """Adaptive transport law of a robots-object team (paper Sec. III-A, 2) Cooperative Object
+    Transportation): the navigation law of the coupled entity with estimates m̂_A,j, α̂_A,j, split as
+    u_ℓ = cf_ℓ u to outputs ``u_<member>``; the total entity input is also available as ``u``.  ``task.cf`` must
+    have one entry per member."""
 
     def __init__(self, members: Sequence[str], task: NavigationTask | None = None,
                  gains: AdaptiveGains | None = None, name: str = "transport_controller"):

@@ -1,4 +1,4 @@
-"""Mission execution in ONE Drake diagram (paper Section III-A, sequential execution of the plan).
+"""Mission execution in ONE Drake diagram (paper Sec. III-A, sequential execution of the plan).
 
 :class:`Mission` places the whole executed run (:mod:`mrodrake.execution.placement`), builds the diagram with
 the ``AddX`` helpers of :mod:`mrodrake.systems.builders` (plants, controllers, team plants, state switches,

@@ -1,4 +1,4 @@
-"""Uncertain plants as Drake systems (paper eqs. agent dynamics, object dynamics, coupled dynamics)."""
+"""Uncertain plants as Drake systems (paper eqs. (1), (2), (5))."""
 
 from __future__ import annotations
 
