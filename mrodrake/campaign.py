@@ -34,17 +34,27 @@ import sys
 import threading
 import time
 from collections import deque
+from collections.abc import Callable, Iterable
 from dataclasses import field as dc_field
 from pathlib import Path
-from typing import Annotated, Any, Callable, Iterable, Literal
+from typing import Annotated, Any, Literal
 
 import numpy as np
 from pydantic import ConfigDict, Field, TypeAdapter
 from pydantic.dataclasses import dataclass
 
 from mrodrake.errors import UserError
-from mrodrake.scenario import (NonNegNum, PosNum, Scenario, Str, Where, format_path, load_scenario, parse_typed,
-                               read_text)
+from mrodrake.scenario import (
+    NonNegNum,
+    PosNum,
+    Scenario,
+    Str,
+    Where,
+    format_path,
+    load_scenario,
+    parse_typed,
+    read_text,
+)
 
 _CFG = ConfigDict(extra="forbid")
 PosInt = Annotated[int, Field(strict=True, gt=0)]
@@ -179,7 +189,8 @@ class MissionTask:
         """Hash of every input that can change the row (a resumed mission must match it)."""
         data = {"scenario": dataclasses.asdict(self.instance.scenario), "plan_seed": self.plan_seed,
                 "layout_seed": self.layout_seed, "params": self.params, "planner": self.planner,
-                "iterations": self.iterations, "plan_time_limit": self.plan_time_limit, "suffix_cycles": self.suffix_cycles,
+                "iterations": self.iterations, "plan_time_limit": self.plan_time_limit,
+                "suffix_cycles": self.suffix_cycles,
                 "time_limit": self.time_limit, "inject": self.inject}
         return hashlib.sha256(json.dumps(data, sort_keys=True, default=str).encode()).hexdigest()[:16]
 
@@ -458,7 +469,8 @@ def base_row(task: MissionTask) -> dict:
                               for n, p in task.params.items()}),
         "ok": False, "failure_kind": "", "failure_message": "", "steps_done": None, "steps_total": None,
         "sim_seconds": None, "plan_wall_seconds": None, "sim_wall_seconds": None, "wall_seconds": None,
-        "cpu_seconds": None, "real_time_factor": None, "min_clearance": None, "min_clearance_entity": "", "min_gap": None,
+        "cpu_seconds": None, "real_time_factor": None, "min_clearance": None, "min_clearance_entity": "",
+        "min_gap": None,
         "min_gap_pair": "", "max_speed": None, "max_speed_entity": "", "nan_seen": False,
     }
 

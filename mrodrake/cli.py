@@ -17,7 +17,6 @@ from mrodrake.errors import UserError
 
 def _cmd_validate(args: argparse.Namespace) -> int:
     from mrodrake.scenario import load_scenario
-
     from mrodrake.ts import TransitionSystem
 
     for path in args.scenarios:
@@ -53,8 +52,8 @@ def _cmd_ts(args: argparse.Namespace) -> int:
 
 def _write_ts_json(ets, out) -> None:
     ts = ets.ts
-    out.write('{"scenario": %s, "propositions": %s, "initial": 0,\n "states": [\n'
-              % (json.dumps(ts.scenario.name), json.dumps(ts.propositions)))
+    name, props = json.dumps(ts.scenario.name), json.dumps(ts.propositions)
+    out.write(f'{{"scenario": {name}, "propositions": {props}, "initial": 0,\n "states": [\n')
     for u in range(ets.num_states):
         s = ets.state(u)
         d = ts.state_dict(s)
@@ -89,12 +88,6 @@ def _progress_callback(desc: str):
     return update
 
 
-def _cmd_bench(args: argparse.Namespace) -> int:
-    from mrodrake import bench
-
-    return bench.run(args.what, args)
-
-
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="mrodrake",
@@ -118,26 +111,16 @@ def build_parser() -> argparse.ArgumentParser:
                    "(with costs and actions) as JSON")
     p.set_defaults(func=_cmd_ts)
 
-    from mrodrake import campaign
+    from mrodrake import bench, campaign
+    from mrodrake import run as run_cli
     from mrodrake.logic import cli as logic_cli
     from mrodrake.planning import cli as plan_cli
-    from mrodrake import run as run_cli
 
     logic_cli.add_subparser(sub)
     plan_cli.add_subparser(sub)
     run_cli.add_subparser(sub)
     campaign.add_subparser(sub)
-
-    p = sub.add_parser("bench", help="benchmarks (not tests)", description="Run a benchmark and print a table: "
-                       "ts (TS construction), ltl (LTL->NBA vs Spot), plan (planners), control (map and one "
-                       "navigation), replay (HTML replay), run (whole mission; case I unless --scenario).")
-    p.add_argument("what", choices=["ts", "ltl", "plan", "control", "replay", "run"], help="what to benchmark")
-    p.add_argument("--scenario", metavar="FILE", default=None,
-                   help="scenario of `bench run` (default: scenarios/case_study_1.yaml)")
-    p.add_argument("--stylus-default", action="store_true",
-                   help="`bench plan`: STyLuS*'s default problem (100 robots, 1000-state random TS) instead")
-    p.add_argument("--seeds", type=int, default=None, metavar="N", help="`bench plan`: seeds per problem (default 3)")
-    p.set_defaults(func=_cmd_bench)
+    bench.add_subparser(sub)
     return parser
 
 

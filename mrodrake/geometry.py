@@ -1,14 +1,14 @@
 """Planar geometry helpers (shapely): polygon checks, workspace free space, disks, grasp layouts.
 
 Used by the scenario validator, the transition system (covering radii r_A,j) and the controllers
-(free space of one moving entity, paper Section III-A: F_i = (W_f \\ O_i) ⊖ r_i).
+(free space of one moving entity, paper Sec. III-A: F_i = (W_f \\ O_i) ⊖ r_i).
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Sequence
 
 import numpy as np
 import shapely
@@ -51,7 +51,7 @@ def disk(center: Sequence[float], radius: float, quad_segs: int = DISK_QUAD_SEGS
 
 
 def workspace_free_space(boundary: Polygon, obstacles: Sequence[Polygon]) -> Polygon:
-    """W_f = W minus the obstacles (paper Section II-B)."""
+    """W_f = W minus the obstacles (paper Sec. II-B)."""
     free = boundary
     for obs in obstacles:
         free = free.difference(obs)
@@ -72,7 +72,7 @@ class GraspLayout:
 
     ``offsets[k]`` is x_i − x^o_j for the k-th robot of the team (the paper's −d^o_ij), measured
     in the team's reference orientation; ``covering_radius`` is r_A,j of the coupled entity (paper
-    Section II): the smallest disk centred at the object that covers the object and every robot.
+    Sec. II-B): the smallest disk centred at the object that covers the object and every robot.
     """
 
     offsets: np.ndarray

@@ -1,5 +1,5 @@
-"""Circle packing procedure P_s = [P_{s,0}, P_{s,1}] (paper Sec. III-A, the paragraph after the grasp
-and release definitions): do non-overlapping disks with given radii fit in a region disk, and where.
+"""Circle packing procedure P_s = [P_{s,0}, P_{s,1}] (paper Sec. II-B, the paragraph after
+the grasping and releasing definitions): do non-overlapping disks with given radii fit in a region disk, and where.
 
 P_s is **sound but incomplete**.  Deciding whether disks fit in a disk is NP-hard in general, so a "no"
 means "no packing found" (or a proven necessary condition fails), while every "yes" carries centres
@@ -24,8 +24,8 @@ Every random choice uses ``numpy.random.default_rng(seed)``; results are determi
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from functools import lru_cache
-from typing import Sequence
 
 import numpy as np
 from scipy.optimize import minimize
@@ -369,6 +369,14 @@ fits.cache_info = _pack_sorted.cache_info  # type: ignore[attr-defined]
 fits.cache_clear = _pack_sorted.cache_clear  # type: ignore[attr-defined]
 
 
+def entities_fit(region_radius: float, radii, spacing: float) -> bool:
+    """P_{s,0} with the layout spacing: disks of ``radii`` fit in the region keeping ``spacing`` between
+    any two of them and between each and the region's rim (radii inflated by spacing/2, container
+    shrunk by spacing/2)."""
+    half = 0.5 * spacing
+    return fits(region_radius - half, sorted((float(r) + half for r in radii), reverse=True))
+
+
 def _spread(c: np.ndarray, r: np.ndarray, fc: np.ndarray, fr: np.ndarray) -> np.ndarray:
     """Increase the minimum gap t of the new disks (pairwise, to fixed disks, to the unit rim) with a
     few SLSQP steps on max t s.t. every gap >= t (rim gaps in the smooth form
@@ -458,38 +466,3 @@ def place(region_radius: float, fixed_centres: np.ndarray, fixed_radii: Sequence
     out = np.empty((len(r), 2))
     out[order] = sol
     return out
-
-
-def benchmark(repeats: int = 5) -> list[tuple[str, float, float]]:
-    """Time uncached P_s decisions and one typical place() for ``mrodrake bench``: rows (case, median
-    ms, max ms) over ``repeats`` runs, the cache cleared before every decision."""
-    import itertools
-    import time
-
-    typical = [list(t) + [0.75] * nr + [0.2] * no
-               for k in range(3) for t in itertools.combinations_with_replacement((1.7, 1.8, 1.9), k)
-               for nr in range(5) for no in range(4) if k + nr + no > 0]
-    cases = [
-        ("typical R=4 (all %d multisets)" % len(typical), [(4.0, t) for t in typical]),
-        ("10 equal, R/r = 1.02 x 3.8130", [(3.8130 * 1.02, [1.0] * 10)]),
-        ("10 equal, R/r = 0.99 x 3.8130", [(3.8130 * 0.99, [1.0] * 10)]),
-        ("14 equal, R/r = 0.99 x 4.3284 (search exhausts)", [(4.3284 * 0.99, [1.0] * 14)]),
-    ]
-    rows = []
-    fc = np.array([[2.1, 0.0], [-2.1, 0.0]])
-    times = []
-    for seed in range(repeats):
-        t0 = time.perf_counter()
-        place(4.0, fc, [1.85, 1.85], [0.75, 0.75, 0.2], seed=seed, margin=0.05)
-        times.append(time.perf_counter() - t0)
-    rows.append(("place 3 new next to 2 fixed, margin 0.05", 1e3 * float(np.median(times)), 1e3 * max(times)))
-    for name, calls in cases:
-        times = []
-        for _ in range(repeats):
-            for R, radii in calls:
-                _pack_sorted.cache_clear()
-                t0 = time.perf_counter()
-                fits(R, radii)
-                times.append(time.perf_counter() - t0)
-        rows.append((name, 1e3 * float(np.median(times)), 1e3 * float(np.max(times))))
-    return rows

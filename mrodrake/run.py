@@ -13,8 +13,8 @@ import argparse
 import signal
 import sys
 import time
+from collections.abc import Callable
 from pathlib import Path
-from typing import Callable
 
 from mrodrake.errors import UserError
 from mrodrake.planning.plan import plan_scenario
@@ -48,7 +48,7 @@ def add_subparser(subparsers) -> argparse.ArgumentParser:
     p = subparsers.add_parser(
         "run", help="plan and simulate a mission, write logs, replay and figures",
         description="Plan the scenario's task (or read --plan), simulate the prefix and N suffix cycles in one "
-        "Drake diagram with a supervisor (paper Section III-A, sequential execution), and write plan.json, "
+        "Drake diagram with a supervisor (paper Sec. III-A, sequential execution), and write plan.json, "
         "plan.csv, trajectory.csv, signals.csv, events.csv, replay.html and figures/ to the output directory.")
     p.add_argument("scenario", metavar="SCENARIO", help="scenario YAML file")
     p.add_argument("--out", metavar="DIR", default=None, help="output directory (default: out/<scenario name>)")

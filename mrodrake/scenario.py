@@ -1,4 +1,4 @@
-"""Scenario files: typed, validated description of a multi-robot-object problem (paper Section II).
+"""Scenario files: typed, validated description of a multi-robot-object problem (paper Sec. II).
 
 A scenario YAML is loaded into frozen *pydantic dataclasses*.  We chose pydantic over Drake's
 ``yaml_load_typed`` because user-facing validation must name the offending field: pydantic reports the
@@ -77,7 +77,7 @@ class Region:
 class Friction:
     """True friction-like term f(x, ẋ) (paper Assumption 1); read only by the simulated plants.
 
-    ``paper``: f = scale · sin(frequency (x₁ + x₂)) · diag(exp(−|ẋ_k|) + 1) ẋ (paper Section IV);
+    ``paper``: f = scale · sin(frequency (x₁ + x₂)) · diag(exp(−|ẋ_k|) + 1) ẋ (paper Sec. IV);
     ``viscous``: f = scale · ẋ.  Both satisfy ‖f‖ ≤ α‖ẋ‖ with α = 2·scale resp. scale.
     """
 
@@ -138,14 +138,14 @@ class Layout:
 
 @dataclass(frozen=True, config=_CFG)
 class ControlGains:
-    """Controller gains (paper Section III-A; defaults: Section IV).
+    """Controller gains (paper Sec. III-A; defaults: Sec. IV).
 
     k1, k2: navigation function weights; k_phi: gradient gain (needs k_phi > α/2); k_v: velocity-error
     gain (not given in the paper); k_m, k_alpha: adaptation gains; r_bar, tau: caps for the separation
     constant r̄ and the barrier's region of influence τ (Prop. 1: τ < min(r̄², r̄_d)); m_hat0, alpha_hat0:
     initial estimates; k1_local, k_v_local: k1 and k_v of the local (identity-map) law that docks at grasp
     points and backs off inside a region (mrodrake.control.local; not in the paper, whose grasps are
-    abstract).  k_v_local exceeds the friction bound α = 2.5 of the paper's f_i (Section IV), so that the
+    abstract).  k_v_local exceeds the friction bound α = 2.5 of the paper's f_i (Sec. IV), so that the
     anti-damping part of f_i cannot sustain a limit cycle around the grasp point while α̂ is still small;
     it is per body: a robots-object team (friction bounds add up) uses k_v_local × (1 + members).
     alpha_max: the design friction bound ᾱ per body (:data:`DESIGN_ALPHA_MAX`); every controller starts its
@@ -394,16 +394,6 @@ def scenario_from_dict(data: dict[str, Any], source: str = "<dict>") -> Scenario
 # --------------------------------------------------------------------------------------------------
 
 
-def entities_fit(region_radius: float, radii, spacing: float) -> bool:
-    """P_{s,0} with the layout spacing: disks of ``radii`` fit in the region keeping ``spacing`` between
-    any two of them and between each and the region's rim (radii inflated by spacing/2, container
-    shrunk by spacing/2)."""
-    from mrodrake.packing import fits
-
-    half = 0.5 * spacing
-    return fits(region_radius - half, sorted((float(r) + half for r in radii), reverse=True))
-
-
 def _check_names(s: Scenario, where: Where) -> None:
     seen: dict[str, tuple] = {}
     for group in ("robots", "objects", "regions"):
@@ -476,6 +466,8 @@ def _check_geometry(s: Scenario, where: Where) -> None:
 
 
 def _check_initial(s: Scenario, where: Where) -> None:
+    from mrodrake.packing import entities_fit
+
     regions = {g.name: g for g in s.regions}
     members: dict[str, list[float]] = {g: [] for g in regions}
     for group in ("robots", "objects"):
@@ -540,7 +532,8 @@ def design_range_warnings(s: Scenario, where: Where | None = None) -> list[str]:
                            f"m̂_0 = control.m_hat0 = {c.m_hat0:g} kg)")
             alpha = b.friction.alpha_bound
             if alpha > c.alpha_max:
-                out.append(f"{where((group, i, 'friction', 'scale'))}: friction bound α = {alpha:g} ({b.friction.model} "
+                out.append(f"{where((group, i, 'friction', 'scale'))}: friction bound α = {alpha:g} "
+                           f"({b.friction.model} "
                            f"model, scale {b.friction.scale:g}) outside the design range α ≤ {c.alpha_max:g} per body "
                            f"of the controllers (control.alpha_max)")
     return out

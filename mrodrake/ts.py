@@ -1,4 +1,4 @@
-"""The coupled multi-robot-object transition system TS (paper Definition 4, Section III-B).
+"""The coupled multi-robot-object transition system TS (paper Definition 4, Sec. III-B).
 
 A state is a flat tuple of ints ``(k_1..k_N, k^o_1..k^o_M, g_1..g_N)``: the region index of every
 robot, the region index of every object, and the object each robot grasps (−1 for none).  This is the
@@ -31,15 +31,16 @@ from __future__ import annotations
 import array
 import itertools
 import time
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
-from typing import Iterator, Sequence, Union
 
 import numpy as np
 from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import breadth_first_order
 
 from mrodrake.geometry import RegionGraph, grasp_layout, polygon
-from mrodrake.scenario import Scenario, entities_fit
+from mrodrake.packing import entities_fit
+from mrodrake.scenario import Scenario
 
 State = tuple
 
@@ -79,7 +80,7 @@ class Transport:
     dst: int
 
 
-Action = Union[Navigate, Grasp, Release, Transport]
+Action = Navigate | Grasp | Release | Transport
 
 
 class TransitionSystem:
@@ -145,7 +146,8 @@ class TransitionSystem:
         key = (j, team)
         r = self._cover.get(key)
         if r is None:
-            r = grasp_layout(self.object_radius[j], [self.robot_radius[i] for i in team], self.grasp_gap).covering_radius
+            radii = [self.robot_radius[i] for i in team]
+            r = grasp_layout(self.object_radius[j], radii, self.grasp_gap).covering_radius
             self._cover[key] = r
         return r
 
@@ -399,7 +401,8 @@ class TransitionSystem:
                 if not team or team != team2:
                     return f"object {self.object_names[j]} moves without the same non-empty team grasping it"
                 if not self.team_power_ok(team, j):
-                    return f"team {{{', '.join(self.robot_names[i] for i in team)}}} lacks the power to move {self.object_names[j]} (Λ)"
+                    members = ", ".join(self.robot_names[i] for i in team)
+                    return f"team {{{members}}} lacks the power to move {self.object_names[j]} (Λ)"
         if not self.step_fits(s, t):
             return "the step's arrivals do not fit next to the entities that leave the same region (P_s)"
         return self.blocked(s, t)
@@ -526,7 +529,7 @@ class TransitionSystem:
             digits.append(d - 1)
         return tuple(digits)
 
-    def build(self, max_states: int | None = None, progress=None) -> "ExplicitTS":
+    def build(self, max_states: int | None = None, progress=None) -> ExplicitTS:
         """Reachable TS from the initial state as a CSR graph (see :class:`ExplicitTS`).
 
         Breadth-first over integer state codes (:meth:`encode`): the successor codes of a state are the
@@ -551,7 +554,8 @@ class TransitionSystem:
                 for i in range(N):
                     d = deltas.get((i, keys[i]))
                     if d is None:
-                        d = deltas[(i, keys[i])] = [r * w_r[i] + (g + 1) * w_g[i] for r, g in self.option_pairs(keys[i])]
+                        d = deltas[(i, keys[i])] = [r * w_r[i] + (g + 1) * w_g[i]
+                                                    for r, g in self.option_pairs(keys[i])]
                     cand = [a + b for a in cand for b in d] if len(d) > 1 else [a + d[0] for a in cand]
                 found = list(map(index.get, cand))
                 if None in found:

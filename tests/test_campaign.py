@@ -17,8 +17,14 @@ import pandas as pd
 import pytest
 
 from mrodrake import cli
-from mrodrake.campaign import (TIMING_COLUMNS, classify, load_campaign, randomized_scenario, run_campaign,
-                               trajectory_metrics)
+from mrodrake.campaign import (
+    TIMING_COLUMNS,
+    classify,
+    load_campaign,
+    randomized_scenario,
+    run_campaign,
+    trajectory_metrics,
+)
 from mrodrake.scenario import load_scenario
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -69,7 +75,8 @@ def comparable(df):
 ERRORS = [
     ("name: x\nscenarios:\n  - file: {tiny}\nseeds:\n  plans: {{count: 2}}\n", 5, "seeds.plans: unknown field"),
     ("name: x\n", 1, "scenarios: missing required field"),
-    ("name: x\nscenarios:\n  - file: nope.yaml\n", 3, "scenarios[0].file: no such file 'nope.yaml' (relative to the spec)"),
+    ("name: x\nscenarios:\n  - file: nope.yaml\n", 3,
+     "scenarios[0].file: no such file 'nope.yaml' (relative to the spec)"),
     ("name: x\nscenarios:\n  - file: {tiny}\n    generate: {{robots: [2], objects: [1], regions: [3]}}\n", 3,
      "scenarios[0]: give exactly one of 'file' and 'generate'"),
     ("name: x\nscenarios:\n  - generate: {{robots: [2], objects: [1], regions: [13]}}\n", 3,

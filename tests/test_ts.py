@@ -14,8 +14,8 @@ from hypothesis import strategies as st
 
 from mrodrake.errors import UserError
 from mrodrake.geometry import grasp_layout
-from mrodrake.packing import verify_packing
-from mrodrake.scenario import entities_fit, load_scenario, scenario_from_dict
+from mrodrake.packing import entities_fit, verify_packing
+from mrodrake.scenario import load_scenario, scenario_from_dict
 from mrodrake.ts import Grasp, Navigate, Release, TransitionSystem, Transport
 
 ROOT = Path(__file__).resolve().parents[1]

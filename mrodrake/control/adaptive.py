@@ -1,13 +1,13 @@
-"""Adaptive navigation and cooperative-transport control laws (paper Section III-A), pure numpy.
+"""Adaptive navigation and cooperative-transport control laws (paper Sec. III-A), pure numpy.
 
 Navigation of one entity with unknown mass m and friction bound α (Assumption 1):
 
-    v_d = −J_H(x)⁻¹ ∇φ(H(x))                                              (eq. v_d)
+    v_d = −J_H(x)⁻¹ ∇φ(H(x))                                              (eq. (9))
     e_v = ẋ − v_d
-    u   = −k_φ J_H(x)ᵀ ∇φ(H(x)) + m̂ v̇_d − (k_v + 3/2 α̂) e_v                  (control law u)
-    dm̂/dt = −k_m e_vᵀ v̇_d,   dα̂/dt = k_α ‖e_v‖²                            (eq. adaptation law)
+    u   = −k_φ J_H(x)ᵀ ∇φ(H(x)) + m̂ v̇_d − (k_v + 3/2 α̂) e_v                  (eq. (10))
+    dm̂/dt = −k_m e_vᵀ v̇_d,   dα̂/dt = k_α ‖e_v‖²                            (eq. (11))
 
-Cooperative transport: the same law for the coupled robots-object entity (eq. coupled dynamics, estimates
+Cooperative transport: the same law for the coupled robots-object entity (eq. (5), estimates
 m̂_A,j, α̂_A,j), split to the team by load-sharing coefficients: u_ℓ = cf_ℓ u, cf_ℓ ≥ 0, Σ cf_ℓ = 1, so
 that Σ_ℓ u_ℓ = u.  The paper prints the transport law as u_ℓ = −cf_ℓ{k_φ Jᵀ∇φ + m̂ v̇_d − (k_v + 3/2 α̂) e_v};
 taken literally that flips the sign of the m̂ v̇_d and damping terms (a destabilising positive velocity
@@ -61,8 +61,9 @@ neighbourhood, instead of one τ for the whole map.  The start is kept outside e
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import NamedTuple, Sequence
+from typing import NamedTuple
 
 import numpy as np
 
@@ -101,7 +102,7 @@ class AdaptiveGains:
     alpha_max: float = 0.0
 
     @classmethod
-    def from_scenario(cls, control) -> "AdaptiveGains":
+    def from_scenario(cls, control) -> AdaptiveGains:
         """From the scenario's ``control`` section (:class:`mrodrake.scenario.ControlGains`)."""
         return cls(control.k_phi, control.k_v, control.k_m, control.k_alpha, control.m_hat0, control.alpha_hat0,
                    control.alpha_max)
@@ -116,12 +117,12 @@ class AdaptiveGains:
 
 def navigation_input(J: np.ndarray, grad_phi: np.ndarray, vdot_d: np.ndarray, e_v: np.ndarray,
                      m_hat: float, alpha_hat: float, k_phi: float, k_v: float) -> np.ndarray:
-    """u = −k_φ J_Hᵀ ∇φ + m̂ v̇_d − (k_v + 3/2 α̂) e_v (paper Sec. III-A, control law u)."""
+    """u = −k_φ J_Hᵀ ∇φ + m̂ v̇_d − (k_v + 3/2 α̂) e_v (paper Sec. III-A, eq. (10))."""
     return -k_phi * (J.T @ grad_phi) + m_hat * vdot_d - (k_v + 1.5 * alpha_hat) * e_v
 
 
 def adaptation_rates(e_v: np.ndarray, vdot_d: np.ndarray, k_m: float, k_alpha: float) -> tuple[float, float]:
-    """(dm̂/dt, dα̂/dt) = (−k_m e_vᵀ v̇_d, k_α ‖e_v‖²) (eq. adaptation law)."""
+    """(dm̂/dt, dα̂/dt) = (−k_m e_vᵀ v̇_d, k_α ‖e_v‖²) (eq. (11))."""
     return -k_m * float(e_v @ vdot_d), k_alpha * float(e_v @ e_v)
 
 
@@ -150,24 +151,25 @@ def load_sharing(cf: Sequence[float] | int) -> np.ndarray:
 
 
 def transport_inputs(u: np.ndarray, cf: np.ndarray) -> np.ndarray:
-    """u_ℓ = cf_ℓ u for every team member ℓ (rows), paper Sec. III-A 2); Σ_ℓ u_ℓ = u."""
+    """u_ℓ = cf_ℓ u for every team member ℓ (rows), paper Sec. III-A, 2) Cooperative Object Transportation;
+    Σ_ℓ u_ℓ = u."""
     return np.outer(cf, u)
 
 
 @dataclass(frozen=True)
 class LocalBarrierNavigationFunction:
     """φ(χ) = k1‖χ − χ_d‖² + k2 Σ_{ℓ∈J̄0} (β_ℓ(d_ℓ(χ)) − 1) with one region of influence τ_ℓ per barrier
-    (β_ℓ(x) = β(x/τ_ℓ), β of eq. (beta_exps)); ℓ = 0 is the circle of radius ρ₀ ≤ 1 (d_0 = ρ₀² − ‖χ‖²).
+    (β_ℓ(x) = β(x/τ_ℓ), β of eq. (8)); ℓ = 0 is the circle of radius ρ₀ ≤ 1 (d_0 = ρ₀² − ‖χ‖²).
 
     Circle radius ρ₀ = 1 − κ δ_max (our correction, :data:`CIRCLE_DEFICIT_FACTOR`): the discrete map H falls
     short of the unit circle on the outer boundary ∂F by up to δ_max (``PointWorldMap.circle_deficit``), so
     with d_0 = 1 − ‖χ‖² the barrier β_0 stays finite (or even 1) on ∂F and nothing stops an entity at the
     wall.  With ρ₀ below the ridge of |H| along ∂F, every path in F from a start with ‖H‖ < ρ₀ to ∂F crosses
-    ‖H‖ = ρ₀ (continuity), where d_0 = 0 and β_0 = ∞: property 1 of Def. 2nd-order NF (φ → ∞ on the
+    ‖H‖ = ρ₀ (continuity), where d_0 = 0 and β_0 = ∞: property 1 of Def. 3 (φ → ∞ on the
     boundary of the point world) holds on the sublevel sets the Lyapunov argument uses, and Proposition 1's
     construction is unchanged with the unit disk replaced by the disk of radius ρ₀.  ρ₀ = 1 is the paper's φ.
 
-    A generalisation of Def. 2nd-order NF with Proposition 1 applied per barrier (our choice, see
+    A generalisation of Def. 3 with Proposition 1 applied per barrier (our choice, see
     :func:`local_barriers`): the paper's single τ < r̄² is set by the two closest points b_ℓ of the whole
     map, which in an office are ~1e-3 apart (rooms are squeezed against the unit circle), giving
     τ ~ 1e-7 everywhere — thinner than the panel map's own error around holes (1e-4 to 3e-3) and along the
@@ -288,7 +290,7 @@ class NavigationTask:
     @classmethod
     def build(cls, pw_map, goal, gains: AdaptiveGains, *, k1: float, k2: float, r_bar_cap: float,
               tau_cap: float, cf: Sequence[float] | int = 1, start=None, v_max: float = V_MAX,
-              label: str = "") -> "NavigationTask":
+              label: str = "") -> NavigationTask:
         """Task for workspace goal x_d on map H: χ_d = H(x_d), b_ℓ the map's hole points, φ with per-barrier
         regions of influence (:func:`local_barriers`, caps ρ ≤ r_bar_cap, τ ≤ tau_cap) and the circle
         barrier at ρ₀ = 1 − κ δ_max (:func:`circle_radius`, δ_max the map's ``circle_deficit``).
@@ -317,8 +319,8 @@ class NavigationTask:
         if outside_free_set(phi):
             return self._fault(x, xdot, "is outside the free set (past a barrier of the navigation function)")
         if not (np.all(np.isfinite(v_raw)) and np.all(np.isfinite(vdot_raw))):
-            return self._fault(x, xdot, f"is where the point-world map is degenerate (det J_H = {np.linalg.det(J):.3g}):"
-                                  " the entity left the region the map resolves")
+            return self._fault(x, xdot, f"is where the point-world map is degenerate "
+                                  f"(det J_H = {np.linalg.det(J):.3g}): the entity left the region the map resolves")
         v_d, vdot_d = saturate_velocity(v_raw, vdot_raw, self.v_max)
         e_v = xdot - v_d
         u = navigation_input(J, grad, vdot_d, e_v, m_hat, alpha_hat, g.k_phi, g.k_v)

@@ -1,4 +1,4 @@
-"""Free space of one moving entity and goal points (paper Section III-A).
+"""Free space of one moving entity and goal points (paper Sec. III-A).
 
 A moving entity (a robot, or a robots-object team with covering radius r_A,j) sees the workspace obstacles,
 the other entities (static disks) and the regions of interest other than its start and goal ("avoid
@@ -24,8 +24,8 @@ finely by the map.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Sequence
 
 import numpy as np
 import shapely
@@ -156,7 +156,7 @@ def goal_point(
     future: Sequence[float] = (),
 ) -> np.ndarray:
     """Goal x_d of an entity of ``radius`` in ``region`` given the entities already there (P_s, paper
-    Section III-A), keeping ``margin`` (default: the layout spacing) to them and to the region's rim.
+    Sec. III-A), keeping ``margin`` (default: the layout spacing) to them and to the region's rim.
     ``future``: radii of entities that will join it there later; the goal is then taken from a joint
     placement of all of them, so that it leaves room for them."""
     k = region_index(scenario, region)

@@ -6,11 +6,11 @@ robot must reach its grasp point, ``layout.grasp_gap`` (0.1 m) from the object's
 point world that goal lies a few millimetres from the object's hole image b_ℓ; Proposition 1 then forces
 τ ~ 1e-8 and the law crawls for hundreds of seconds.  Inside a region the free space is a disk (the region)
 minus disks (the other entities), so no map is needed: we use the identity map H(x) = x and the same
-adaptive law (paper Sec. III-A: eq. v_d, control law u, adaptation law) on a disk-world navigation function
+adaptive law (paper Sec. III-A: eqs. (9)–(11)) on a disk-world navigation function
 
     φ(x) = k1‖x − x_d‖² + k2 Σ_ℓ (β_ℓ(d_ℓ(x)) − 1),   d_ℓ = ‖x − c_ℓ‖² − ρ_ℓ²,   d_0 = R² − ‖x − c‖²,
 
-with β_ℓ the barrier of eq. (beta_exps) with its own region of influence τ_ℓ (ρ_ℓ = r_ℓ + r: the other
+with β_ℓ the barrier of eq. (8) with its own region of influence τ_ℓ (ρ_ℓ = r_ℓ + r: the other
 entity grown by the robot radius; d_0: the region's disk shrunk by r, so the robot never leaves the region).
 With J_H = I the paper's Lyapunov argument holds unchanged, so φ stays bounded: no collision and no exit
 from the region, whatever the masses and frictions.
@@ -32,8 +32,8 @@ tangential curvature there is 2k1(1 − ‖x − x_d‖/‖x − c_ℓ‖) < 0 (
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Sequence
 
 import numpy as np
 from scipy.sparse.csgraph import dijkstra

@@ -1,9 +1,9 @@
-"""2nd-order navigation function in the point world (paper Sec. III-A: Def. 2nd-order NF, eq. (beta_exps),
-Proposition 1, eq. (v_d)).
+"""2nd-order navigation function in the point world (paper Sec. III-A: Def. 3, eq. (8),
+Proposition 1, eq. (9)).
 
 φ(χ) = k1‖χ − χ_d‖² + k2 Σ_{ℓ∈J̄0} (β(d_ℓ(χ)) − β(τ)),  d_ℓ = ‖χ − b_ℓ‖² (ℓ ≥ 1), d_0 = 1 − ‖χ‖².
 
-β is the polynomial barrier of eq. (beta_exps) with its region of influence scaled to τ:
+β is the polynomial barrier of eq. (8) with its region of influence scaled to τ:
 β(x) = 1 / P(x/τ), P(s) = 6s⁵ − 15s⁴ + 10s³, for x < τ and β(x) = 1 for x ≥ τ.  The constant β(τ) = 1 is
 subtracted in φ so that φ(χ_d) = 0 (property 2 of the definition); this shifts φ only, ∇φ is unchanged.
 """
@@ -21,7 +21,7 @@ _ORIGIN = np.zeros(2)
 
 
 def beta(x, tau: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """β(x), β'(x), β''(x) of eq. (beta_exps) with region of influence τ (x > 0; vectorised).
+    """β(x), β'(x), β''(x) of eq. (8) with region of influence τ (x > 0; vectorised).
 
     C² at x = τ: P(1) = 1, P'(1) = P''(1) = 0.
     """
@@ -51,7 +51,7 @@ def r_bar_max(obstacles: np.ndarray) -> float:
 
 
 def r_bar_d(goal: np.ndarray, obstacles: np.ndarray) -> float:
-    """r̄_d of eq. (bar_r_d): min(1 − ‖χ_d‖², min_ℓ d_ℓ(χ_d))."""
+    """r̄_d of eq. (7): min(1 − ‖χ_d‖², min_ℓ d_ℓ(χ_d))."""
     g = np.asarray(goal, dtype=float)
     b = np.asarray(obstacles, dtype=float).reshape(-1, 2)
     r = 1.0 - float(g @ g)
@@ -97,7 +97,7 @@ class Barriers:
     cnorm: np.ndarray
 
     @classmethod
-    def make(cls, rim_center, rim_radius: float, centers, radii, taus) -> "Barriers":
+    def make(cls, rim_center, rim_radius: float, centers, radii, taus) -> Barriers:
         c = np.vstack([np.reshape(np.asarray(rim_center, dtype=float), (1, 2)),
                        np.asarray(centers, dtype=float).reshape(-1, 2)])
         rho = np.concatenate([[float(rim_radius)], np.asarray(radii, dtype=float).reshape(-1)])
@@ -107,7 +107,8 @@ class Barriers:
         return cls(c, rho * rho, sign, np.where(t > 0.0, t, -np.inf), np.hypot(c[:, 0], c[:, 1]))
 
 
-def phi_terms(chi: np.ndarray, goal: np.ndarray, bar: Barriers, k1: float, k2: float) -> tuple[float, np.ndarray, np.ndarray]:
+def phi_terms(chi: np.ndarray, goal: np.ndarray, bar: Barriers, k1: float,
+              k2: float) -> tuple[float, np.ndarray, np.ndarray]:
     """(φ, ∇φ, ∇²φ) at χ of φ = k1‖χ − χ_d‖² + k2 Σ_ℓ (β_ℓ(d_ℓ) − 1) with the rim barrier
     d_0 = R² − ‖χ − c_0‖² and disk barriers d_ℓ = ‖χ − c_ℓ‖² − ρ_ℓ² (ρ_ℓ = 0: the point obstacles b_ℓ of the
     point world), :class:`Barriers` ``bar``.
@@ -145,7 +146,7 @@ def outside_free_set(phi: float) -> bool:
 
 @dataclass(frozen=True)
 class NavigationFunction:
-    """φ of Def. 2nd-order NF for goal χ_d, point obstacles b_ℓ and the unit-circle boundary."""
+    """φ of Def. 3 for goal χ_d, point obstacles b_ℓ and the unit-circle boundary."""
 
     goal: np.ndarray
     obstacles: np.ndarray
@@ -157,7 +158,7 @@ class NavigationFunction:
 
     @classmethod
     def for_goal(cls, goal, obstacles, *, k1: float = 1.0, k2: float = 1.0, r_bar_cap: float = R_BAR_CAP,
-                 tau_cap: float | None = None, fraction: float = TAU_FRACTION) -> "NavigationFunction":
+                 tau_cap: float | None = None, fraction: float = TAU_FRACTION) -> NavigationFunction:
         """φ with τ chosen by ``select_tau`` from the actual b_ℓ."""
         if not (k1 > 0 and k2 > 0):
             raise ValueError("k1 and k2 must be positive")
@@ -167,13 +168,14 @@ class NavigationFunction:
         return cls(goal, obstacles, tau, k1, k2, rb, rd)
 
     @classmethod
-    def for_map(cls, pw_map, x_goal, **kwargs) -> "NavigationFunction":
+    def for_map(cls, pw_map, x_goal, **kwargs) -> NavigationFunction:
         """φ for a workspace goal x_d: χ_d = H(x_d), b_ℓ = the map's hole points."""
         return cls.for_goal(pw_map(np.asarray(x_goal, dtype=float)), pw_map.hole_points, **kwargs)
 
     def __post_init__(self):
         b = self.obstacles
-        object.__setattr__(self, "_bar", Barriers.make(_ORIGIN, 1.0, b, np.zeros(len(b)), np.full(len(b) + 1, self.tau)))
+        object.__setattr__(self, "_bar",
+                           Barriers.make(_ORIGIN, 1.0, b, np.zeros(len(b)), np.full(len(b) + 1, self.tau)))
 
     def evaluate(self, chi) -> tuple[float, np.ndarray, np.ndarray]:
         """(φ, ∇φ, ∇²φ) at χ (shape (2,)); only barriers with d_ℓ(χ) < τ contribute (β' = β'' = 0 beyond)."""
@@ -190,7 +192,7 @@ class NavigationFunction:
 
 
 def desired_velocity(pw_map, nf: NavigationFunction, x, xdot):
-    """v_d = −J_H(x)⁻¹ ∇φ(H(x)) (eq. (v_d)) and its exact time derivative along ẋ.
+    """v_d = −J_H(x)⁻¹ ∇φ(H(x)) (eq. (9)) and its exact time derivative along ẋ.
 
     With χ̇ = J ẋ, J̇ = Σ_i ∂J/∂x_i ẋ_i (the Hessians of H) and J v_d = −∇φ:
     v̇_d = −J⁻¹ (∇²φ χ̇ + J̇ v_d).  Returns (v_d, v̇_d, J_H, ∇φ, φ); φ = +∞ (NaN v_d) past a barrier's pole.

@@ -461,7 +461,7 @@ class PointWorldMap:
         gap_fraction: float = 0.25,
         blob_tolerance: float = 0.08,
         max_refinements: int = 3,
-    ) -> "PointWorldMap":
+    ) -> PointWorldMap:
         """Discretise the boundary of ``free_space`` (a shapely Polygon with holes) and solve for H.
 
         Panel length ≈ ``clearance_fraction`` × local width of the free space (the diameter of the largest

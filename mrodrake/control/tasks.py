@@ -3,7 +3,7 @@ navigation task of an entity's free space (paper Sec. III-A) and static P_s layo
 
 from __future__ import annotations
 
-from typing import Mapping, Sequence
+from collections.abc import Mapping, Sequence
 
 import numpy as np
 
@@ -14,7 +14,6 @@ from mrodrake.errors import UserError
 from mrodrake.geometry import grasp_layout
 from mrodrake.packing import place
 from mrodrake.scenario import Scenario
-
 
 #: Point-world map options used by :func:`build_task`: panels on curved boundaries (the enlarged door
 #: jambs, obstacle corners and disks) at most 0.1 x the radius of curvature.  With the default 0.5 the map

@@ -12,8 +12,8 @@ re-entering a region), since it reads whatever happened.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Sequence
 
 import numpy as np
 
@@ -57,7 +57,7 @@ class WordMonitor:
         self.run = 1 << words.nba.initial
         self.read_in_step = False
 
-    def copy(self) -> "WordMonitor":
+    def copy(self) -> WordMonitor:
         other = WordMonitor.__new__(WordMonitor)
         other.words, other.K, other.regions = self.words, self.K, list(self.regions)
         other.run, other.read_in_step = self.run, self.read_in_step

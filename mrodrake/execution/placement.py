@@ -1,10 +1,11 @@
 """Plan-wide placement: every goal, grasp and back-off point of the executed run, fixed before simulating.
 
-The paper leaves the continuous goals of a transition to P_s (Sec. III-A): "a goal point in the target
-region, given the entities there".  Chosen one arrival at a time during execution, such goals can leave no
-room for what the plan brings later (a team needs its covering disk free around its object, a later arrival
-its slot).  :func:`place_run` walks the whole executed run (prefix and suffix cycles) once, in the order the
-sequencer will execute it, and fixes for every primitive where its entity ends:
+The paper leaves the continuous goals of a transition to P_s (Sec. III-A: the desired goal "will be provided
+by the procedure P_s"), a goal point in the target region given the entities there.  Chosen one arrival at a
+time during execution, such goals can leave no room for what the plan brings later (a team needs its covering
+disk free around its object, a later arrival its slot).  :func:`place_run` walks the whole executed run (prefix
+and suffix cycles) once, in the order the sequencer will execute it, and fixes for every primitive where its
+entity ends:
 
 * a release: the back-off spot of the robot (clear of its object's reserved team disk);
 * a grasp: the docking point on the team layout around the object (the layout of the object's next
@@ -29,9 +30,9 @@ from __future__ import annotations
 
 import itertools
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 from enum import Enum
-from typing import Sequence
 
 import numpy as np
 import shapely
@@ -42,7 +43,7 @@ from mrodrake.errors import UserError
 from mrodrake.execution.steps import StepSpec
 from mrodrake.geometry import CONTROL_MARGIN, grasp_layout, polygon
 from mrodrake.packing import place
-from mrodrake.ts import Grasp, Navigate, Release, Transport, TransitionSystem
+from mrodrake.ts import Grasp, Navigate, Release, TransitionSystem, Transport
 
 #: Spacing (m) of the boundary points that keep spots off walls, obstacles and other regions.
 BOUNDARY_SAMPLE = 0.2
@@ -263,7 +264,8 @@ class _Placer:
         (two candidates per ring are tried); ``rim_extra`` keeps that much more room to the rim."""
         c, R, sp = self.centers[k], float(self.R[k]), self.spacing
         S = self.samples(k)
-        fc = np.vstack([np.array(cs, dtype=float).reshape(-1, 2), S]) if len(S) else np.array(cs, dtype=float).reshape(-1, 2)
+        cs_xy = np.array(cs, dtype=float).reshape(-1, 2)
+        fc = np.vstack([cs_xy, S]) if len(S) else cs_xy
         fr = np.concatenate([np.asarray(rs, dtype=float), np.full(len(S), CONTROL_MARGIN)])
         top = R - r - 0.5 * sp - rim_extra - 1e-6
         if top < 0.0:
@@ -341,7 +343,8 @@ class _Placer:
 
     # ------------------------------------------------------------------------------------ room moves
     def make_room(self, w: _World, spec: StepSpec, step: int, k: int, new: Sequence[float],
-                  keep_out: Sequence[tuple[np.ndarray, float]], protect: set[int]) -> tuple[np.ndarray, list[PlacedOp]] | None:
+                  keep_out: Sequence[tuple[np.ndarray, float]],
+                  protect: set[int]) -> tuple[np.ndarray, list[PlacedOp]] | None:
         """Place the parked free robots of region k again together with ``new`` disks (and clear of
         ``keep_out`` disks); returns (centres of the new disks, room ops) with every move's path checked."""
         free = [i for i in range(self.N) if w.where[i] == k and w.grasp[i] < 0 and i not in protect]
@@ -548,7 +551,8 @@ class _Placer:
         raise PlacementError(f"{self.where_msg(spec, k)}: no free grasp layout for "
                              f"{'+'.join(ts.robot_names[i] for i in team)} around {ts.object_names[j]}")
 
-    def _clear_disk_by_team(self, w: _World, step: int, k: int, center, radius: float, keep: set[int]) -> PlacedOp | None:
+    def _clear_disk_by_team(self, w: _World, step: int, k: int, center, radius: float,
+                            keep: set[int]) -> PlacedOp | None:
         """Move one team of region k (not in ``keep``) inside it to a spot clear of the disk (center,
         radius) and of everything else, along a straight-leg path; None if no team can."""
         for j2 in range(self.M):
@@ -638,9 +642,10 @@ class _Placer:
             found = self.make_room(w, spec, step, k, [r], [], movers)
             if found is None or not self._object_clear(a, found[0][0], keep_clear):
                 self._learn_from_arrival(w, k, r, cs, rs, es, keep_clear)
+                entity_names = ts.robot_names + ts.object_names
+                nearby = ", ".join(entity_names[x] for x in self.units(w, k, step, movers)[2]) or "nothing"
                 raise PlacementError(f"{self.where_msg(spec, k)}: no room for "
-                                     f"{ts.format_action(a, 'names')} (radius {r:.2f} m) next to "
-                                     f"{', '.join((ts.robot_names + ts.object_names)[x] for x in self.units(w, k, step, movers)[2]) or 'nothing'}")
+                                     f"{ts.format_action(a, 'names')} (radius {r:.2f} m) next to {nearby}")
             spot, ops = found[0][0], found[1]
         rot = 0.0
         if isinstance(a, Transport):  # the members move rigidly with the object

@@ -22,9 +22,9 @@ velocity is reset to zero (the paper's friction can be negative, so an uncontrol
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
 from enum import Enum
-from typing import Sequence
 
 import numpy as np
 import shapely
@@ -36,7 +36,7 @@ from mrodrake.control.tasks import build_task
 from mrodrake.errors import UserError
 from mrodrake.execution.commands import PrimitiveRecord, SyncCommand, TaskCommand
 from mrodrake.execution.monitor import WordMonitor, entity_regions, label_of
-from mrodrake.execution.placement import OpKind, Placement, PlacedOp, layout_slots
+from mrodrake.execution.placement import OpKind, PlacedOp, Placement, layout_slots
 from mrodrake.execution.steps import StepSpec
 from mrodrake.geometry import polygon, workspace_free_space
 from mrodrake.ts import Transport
@@ -188,7 +188,8 @@ class Sequencer:
         self.rest_speed, self.dock_tol, self.goal_tol = float(rest_speed), float(dock_tol), float(goal_tol)
         self.time_limit = time_limit
         self.approach = self._approach_widths()
-        self.controllers = [f"nav_{r}" for r in self.robots] + [self.team_name(j, t) + "_ctrl" for j, t in self.couplings]
+        self.controllers = ([f"nav_{r}" for r in self.robots]
+                            + [self.team_name(j, t) + "_ctrl" for j, t in self.couplings])
         self.plants = self.entities + [self.team_name(j, t) for j, t in self.couplings]
 
     # ------------------------------------------------------------------ names

@@ -27,9 +27,9 @@ def expand_steps(plan, suffix_cycles: int) -> list[StepSpec]:
     steps = list(plan.steps())
     P = len(plan.prefix)
     out: list[StepSpec] = []
-    for step, part, i, j, a, b, acts, cost in steps[:P]:
+    for step, _part, _i, _j, a, b, acts, _cost in steps[:P]:
         out.append(StepSpec(len(out) + 1, step, 0, a[0], a[1], b[0], b[1], tuple(acts)))
     for c in range(suffix_cycles):
-        for step, part, i, j, a, b, acts, cost in steps[P:]:
+        for step, _part, _i, _j, a, b, acts, _cost in steps[P:]:
             out.append(StepSpec(len(out) + 1, step, c + 1, a[0], a[1], b[0], b[1], tuple(acts)))
     return out

@@ -11,7 +11,7 @@ A cube ``(pos_mask, neg_mask)`` is a conjunction of literals (bit ``1 << i`` <->
 
 from __future__ import annotations
 
-from typing import Iterable
+from collections.abc import Iterable
 
 __all__ = ["BDD", "Cube", "Guard"]
 

@@ -4,7 +4,7 @@ SIAM J. Comput. 1(2), 1972), iterative."""
 
 from __future__ import annotations
 
-from typing import Iterable, Sequence
+from collections.abc import Iterable, Sequence
 
 __all__ = ["LazySucc", "reachable", "sccs"]
 

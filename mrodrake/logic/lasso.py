@@ -9,7 +9,7 @@ bit set over the ``n`` positions: ``X`` shifts along the successor map, ``U``/``
 
 from __future__ import annotations
 
-from typing import Sequence
+from collections.abc import Sequence
 
 from mrodrake.errors import UserError
 from mrodrake.logic import ltl

@@ -19,7 +19,7 @@ de-duplication of ``&``/``|``, constant folding, ``!!a = a``, ``F F a = F a``, `
 from __future__ import annotations
 
 import re
-from typing import Callable, Iterable
+from collections.abc import Callable, Iterable
 
 from mrodrake.errors import UserError
 
@@ -41,7 +41,7 @@ _PREC = {IMPLIES: 1, EQUIV: 1, OR: 2, XOR: 3, AND: 4, UNTIL: 5, RELEASE: 5, WEAK
 _KEYWORDS = frozenset({"true", "false", "xor", "X", "F", "G", "U", "R", "W", "M", "V"})
 _IDENT = re.compile(r"[A-Za-z_][A-Za-z0-9_.]*")
 
-_TABLE: dict[tuple, "Formula"] = {}
+_TABLE: dict[tuple, Formula] = {}
 
 
 class Formula:
@@ -54,7 +54,7 @@ class Formula:
     __slots__ = ("kind", "args", "name", "_text", "_sortkey", "_size", "_depth")
 
     kind: str
-    args: tuple["Formula", ...]
+    args: tuple[Formula, ...]
     name: str | None
 
     def __setattr__(self, key, value):
@@ -86,13 +86,13 @@ class Formula:
         return self._depth
 
     # Convenience operators for building formulas in Python code.
-    def __and__(self, other: "Formula") -> "Formula":
+    def __and__(self, other: Formula) -> Formula:
         return And(self, other)
 
-    def __or__(self, other: "Formula") -> "Formula":
+    def __or__(self, other: Formula) -> Formula:
         return Or(self, other)
 
-    def __invert__(self) -> "Formula":
+    def __invert__(self) -> Formula:
         return Not(self)
 
 

@@ -1,4 +1,4 @@
-"""Nondeterministic Büchi automata with symbolic guards (paper Def. 2), DNF guards and the HOA v1 writer.
+"""Nondeterministic Büchi automata with symbolic guards (paper Def. 5), DNF guards and the HOA v1 writer.
 
 In an :class:`NBA` a guard is a DNF, a tuple of cubes ``(pos_mask, neg_mask)`` over the automaton's atomic
 propositions (bit ``1 << i`` <-> ``ap[i]``); a letter (integer mask of the true propositions) satisfies a
@@ -10,7 +10,7 @@ at https://adl.github.io/hoaf/); :mod:`mrodrake.logic.hoa` reads it.
 
 from __future__ import annotations
 
-from typing import Iterable, Sequence
+from collections.abc import Iterable, Sequence
 
 from mrodrake.errors import UserError
 from mrodrake.logic import ltl
@@ -70,7 +70,7 @@ def _guard_holds(guard: Sequence[Cube], label: int) -> bool:
 
 
 class NBA:
-    """A nondeterministic Büchi automaton with state-based acceptance and symbolic guards (paper Def. 2).
+    """A nondeterministic Büchi automaton with state-based acceptance and symbolic guards (paper Def. 5).
 
     * states are ``0..num_states-1``; ``initial`` is the single initial state;
     * ``accepting`` is the frozenset of accepting (final) states;
@@ -225,7 +225,7 @@ class NBA:
         return True
 
     # -- conversions ------------------------------------------------------------------------------------
-    def with_ap(self, ap: Sequence[str], missing: str = "error") -> "NBA":
+    def with_ap(self, ap: Sequence[str], missing: str = "error") -> NBA:
         """The same automaton over the proposition order ``ap`` (masks re-indexed).
 
         Propositions of ``ap`` that the automaton does not use simply never appear in guards.  A
@@ -299,6 +299,6 @@ def _quote(s: str) -> str:
     return '"' + s.replace("\\", "\\\\").replace('"', '\\"') + '"'
 
 
-def empty_nba(ap: Sequence[str]) -> "NBA":
+def empty_nba(ap: Sequence[str]) -> NBA:
     """The one-state automaton over ``ap`` without edges (empty language)."""
     return NBA(tuple(ap), 0, (), [[]])

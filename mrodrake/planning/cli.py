@@ -16,7 +16,7 @@ def add_subparser(subparsers) -> argparse.ArgumentParser:
     p = subparsers.add_parser(
         "plan", help="plan a prefix-suffix run that satisfies the task",
         description="Plan an infinite TS run prefix (suffix)^ω that satisfies the scenario's task (paper "
-        "Section III-B) with STyLuS* or the exact optimal graph search, verify it, and print it as the "
+        "Sec. III-B) with STyLuS* or the exact optimal graph search, verify it, and print it as the "
         "paper's Table I.")
     p.add_argument("scenario", metavar="FILE", help="scenario YAML file, or a graph task (format: mrodrake.graph)")
     p.add_argument("--planner", choices=["stylus", "exact"], default="stylus",

@@ -1,4 +1,4 @@
-"""Exact optimal prefix-suffix planning on the explicit product (paper Section III-B, graph search).
+"""Exact optimal prefix-suffix planning on the explicit product (paper Sec. III-B, graph search).
 
 The optimal plan in prefix-suffix form minimises ``cost(prefix) + cost(suffix)`` over the accepting
 product states ``a``: the prefix is a shortest path from the initial product state to ``a`` and the
@@ -23,8 +23,8 @@ from __future__ import annotations
 
 import time
 import weakref
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Callable
 
 import numpy as np
 import scipy.sparse as sp
@@ -61,7 +61,7 @@ def max_team_power(ts: TransitionSystem, j: int) -> tuple[float, tuple[int, ...]
     return 0.0, ()
 
 
-_IMMOVABLE: "weakref.WeakKeyDictionary[TransitionSystem, dict]" = weakref.WeakKeyDictionary()
+_IMMOVABLE: weakref.WeakKeyDictionary[TransitionSystem, dict] = weakref.WeakKeyDictionary()
 
 
 def immovable_objects(ts: TransitionSystem) -> dict[int, tuple[float, tuple[int, ...]]]:

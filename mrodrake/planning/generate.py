@@ -9,7 +9,7 @@ and K of the map's own regions (centres, radii and names), chosen by the seed.
 
 It then draws N robots and M objects with powers and required powers such that a team of at most three
 robots can move every object, puts them in random regions where they fit (P_s), and writes a random task
-of the paper's shape (Section IV): ``G F ψ_a & G F ψ_b & F ψ_c & (!ψ_d U ψ_e) & G !ψ_f`` over macros ψ
+of the paper's shape (Sec. IV): ``G F ψ_a & G F ψ_b & F ψ_c & (!ψ_d U ψ_e) & G !ψ_f`` over macros ψ
 that are conjunctions of ``<entity>_<region>`` propositions.
 
 Entity sizes: robots of radius 0.75 m and objects of radius 0.2-0.4 m on the office.  On a map both are
@@ -25,7 +25,8 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from mrodrake.scenario import Scenario, entities_fit, load_scenario, scenario_from_dict
+from mrodrake.packing import entities_fit
+from mrodrake.scenario import Scenario, load_scenario, scenario_from_dict
 
 ROOT = Path(__file__).resolve().parents[2] / "scenarios"
 OFFICE = ROOT / "case_study_1.yaml"

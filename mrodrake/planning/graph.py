@@ -35,9 +35,9 @@ Edge weights: the ``weight`` (or ``cost``) attribute, else the Euclidean distanc
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Mapping, Sequence
 
 import networkx as nx
 import numpy as np
@@ -94,7 +94,8 @@ class GraphTS:
     #: The NBA reads the source label of each step (:class:`~mrodrake.planning.semantics.SourceWords`).
     reads_source_label = True
 
-    def __init__(self, name: str, robot_names: Sequence[str], graphs: Sequence[tuple[str, Sequence[str], sp.csr_matrix]],
+    def __init__(self, name: str, robot_names: Sequence[str],
+                 graphs: Sequence[tuple[str, Sequence[str], sp.csr_matrix]],
                  robot_graph: Sequence[int], initial: Sequence[int],
                  propositions: Mapping[str, tuple[str, Mapping[int, Sequence[int]]]],
                  planning: GraphPlanning | None = None, formula: str = ""):
@@ -131,7 +132,8 @@ class GraphTS:
         self.propositions = list(propositions)
         self.predicates = []
         for pname, (mode, clauses) in propositions.items():
-            cl = tuple((int(r), np.sort(np.asarray([self.offsets[self.robot_graph[r]] + v for v in vs], dtype=np.int64)))
+            cl = tuple((int(r), np.sort(np.asarray([self.offsets[self.robot_graph[r]] + v for v in vs],
+                                                   dtype=np.int64)))
                        for r, vs in clauses.items())
             self.predicates.append(Predicate(pname, mode, cl))
         self.member = [[(r, np.isin(np.arange(self.K), vs)) for r, vs in p.clauses] for p in self.predicates]
@@ -419,7 +421,8 @@ def graph_ts_from_dict(data: dict, source: str = "graph task", base: Path | None
     for k, v in pl.items():
         kind = type(getattr(GraphPlanning, k))
         if isinstance(v, bool) or not isinstance(v, (int, float)) or (kind is int and not isinstance(v, int)):
-            raise UserError(f"{source}: planning.{k}: expected {'an integer' if kind is int else 'a number'}, got {v!r}")
+            expected = "an integer" if kind is int else "a number"
+            raise UserError(f"{source}: planning.{k}: expected {expected}, got {v!r}")
         values[k] = kind(v)
     if values.get("iterations", 1) < 1 or values.get("seed", 0) < 0:
         raise UserError(f"{source}: planning: iterations must be >= 1 and seed >= 0")
@@ -428,7 +431,8 @@ def graph_ts_from_dict(data: dict, source: str = "graph task", base: Path | None
     planning = GraphPlanning(**values)
     if not isinstance(data["task"], str):
         raise UserError(f"{source}: task: expected an LTL formula (text)")
-    return GraphTS(str(data.get("name", Path(source).stem)), names, graphs, rgraph, rinit, props, planning, data["task"])
+    return GraphTS(str(data.get("name", Path(source).stem)), names, graphs, rgraph, rinit, props, planning,
+                   data["task"])
 
 
 def is_graph_task(path: str | Path) -> bool:
@@ -458,8 +462,8 @@ def graph_ts_from_networkx(graphs: Mapping[str, object], robots: Mapping[str, tu
                            weight: str = "weight", undirected: bool | None = None, self_loops: bool = True,
                            planning: GraphPlanning | None = None) -> GraphTS:
     """A :class:`GraphTS` from networkx graphs: ``graphs`` name -> (Di)Graph (weights from ``weight``, else the
-    Euclidean distance of node attributes ``pos`` = (x, y) or ``x``, ``y``, else 1); ``robots`` name -> (graph name, initial
-    node); ``propositions`` name -> ("all" | "any", {robot: [nodes]}).  Undirected networkx graphs give both
+    Euclidean distance of node attributes ``pos`` = (x, y) or ``x``, ``y``, else 1); ``robots`` name -> (graph name,
+    initial node); ``propositions`` name -> ("all" | "any", {robot: [nodes]}).  Undirected networkx graphs give both
     directions (``undirected`` overrides)."""
     gl, index = [], {}
     for gname, g in graphs.items():
@@ -495,10 +499,11 @@ def write_graph_task(ts: GraphTS, path: str | Path) -> None:
     for k, gname in enumerate(ts.graph_names):
         lo, hi = int(ts.offsets[k]), int(ts.offsets[k + 1])
         sub = ts.adj[lo:hi, lo:hi].tocoo()
-        local = ts.region_names[lo:hi] if len(ts.graph_names) == 1 else [n.split(":", 1)[1] for n in ts.region_names[lo:hi]]
+        vertex_names = ts.region_names[lo:hi]
+        local = vertex_names if len(ts.graph_names) == 1 else [n.split(":", 1)[1] for n in vertex_names]
         edge_file = path.with_name(f"{path.stem}.{gname}.edges")
-        edge_file.write_text("".join(f"{local[u]} {local[v]} {float(w)!r}\n" for u, v, w in zip(sub.row, sub.col, sub.data)),
-                             encoding="utf-8")
+        edge_file.write_text("".join(f"{local[u]} {local[v]} {float(w)!r}\n"
+                                     for u, v, w in zip(sub.row, sub.col, sub.data)), encoding="utf-8")
         graphs[gname] = {"file": edge_file.name, "undirected": False, "self_loops": False, "vertices": list(local)}
 
     def local_name(v: int) -> str:

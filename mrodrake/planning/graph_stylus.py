@@ -240,7 +240,7 @@ class GraphStrategy:
             dist += best[1]
         return hops + dist / self._scale
 
-    def sampler(self, rng: np.random.Generator) -> "GraphSampler":
+    def sampler(self, rng: np.random.Generator) -> GraphSampler:
         return GraphSampler(self, rng)
 
     def no_plan_note(self) -> str:

@@ -1,4 +1,4 @@
-"""Plans in prefix-suffix form (paper Section III-B, Table I): the contract between planning and execution.
+"""Plans in prefix-suffix form (paper Sec. III-B, Table I): the contract between planning and execution.
 
 A :class:`Plan` is the TS run ``prefix (suffix)^ω`` together with the NBA run that accepts its trace.
 The run is ``prefix + suffix + suffix + ...``: its first state is the TS's initial state (with the NBA's
@@ -48,9 +48,9 @@ import json
 import math
 import time
 from collections import Counter
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Callable, Sequence
 
 from mrodrake.errors import NoPlanFound, UserError
 from mrodrake.logic.ltl import Formula, atoms, parse
@@ -92,7 +92,7 @@ class Plan:
     @staticmethod
     def from_runs(ts: TransitionSystem, scenario: str, formula: str, planner: str, seed: int | None,
                   prefix: Sequence[tuple[State, int]], suffix: Sequence[tuple[State, int]], words: ExecutedWords,
-                  stats: dict | None = None) -> "Plan":
+                  stats: dict | None = None) -> Plan:
         """A plan whose step costs come from the TS and whose actions are in an execution order that takes
         the NBA run of the product nodes for every crossing interleaving (``words``)."""
         run = list(prefix) + list(suffix)
@@ -166,7 +166,7 @@ class Plan:
             if not 0 <= q < nba.num_states:
                 raise PlanVerificationError(f"run state {k + 1}: NBA state {q} out of range")
         words = words_for(ts, nba, relevant_mask(ts, formula))
-        for step, part, i, j, a, b, acts, cost in self.steps():
+        for step, part, _i, _j, a, b, acts, cost in self.steps():
             why = ts.check_transition(a[0], b[0])
             if why is not None:
                 raise PlanVerificationError(f"step {step} ({part}) is not a TS transition: {why}")
@@ -215,7 +215,7 @@ class Plan:
             return {**ts.state_dict(node[0]), "nba": int(node[1])}
 
         steps = []
-        for step, part, i, j, a, b, acts, cost in self.steps():
+        for step, part, i, j, _a, _b, acts, cost in self.steps():
             steps.append({"step": step, "part": part, "from": i, "to": j, "cost": cost,
                           "actions": [self._action_dict(x) for x in acts]})
         return {
@@ -235,7 +235,7 @@ class Plan:
         Path(path).write_text(self.to_json() + "\n", encoding="utf-8")
 
     @staticmethod
-    def from_json(data: str | dict, ts: TransitionSystem, source: str = "plan") -> "Plan":
+    def from_json(data: str | dict, ts: TransitionSystem, source: str = "plan") -> Plan:
         """Read a plan (JSON text or the parsed mapping) for the scenario of ``ts``; UserError on
         malformed input.  The result is not verified: call :meth:`verify`."""
         if isinstance(data, str):
@@ -283,7 +283,7 @@ class Plan:
 
         ts = self._ts()
         rows = []
-        for step, part, i, j, a, b, acts, cost in self.steps():
+        for step, part, i, j, _a, _b, acts, cost in self.steps():
             rows.append({
                 "step": step,
                 "part": part,

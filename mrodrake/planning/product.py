@@ -1,4 +1,4 @@
-"""Product Büchi automaton PBA = TS ⊗ NBA (paper Section III-B, Def. PBA), on the fly or explicit.
+"""Product Büchi automaton PBA = TS ⊗ NBA (paper Sec. III-B, Def. 6), on the fly or explicit.
 
 A product state is a pair ``(s, q)`` of a TS state and an NBA state.  The paper's product reads the label
 of the source state, (s, q) → (s', q') iff s → s' and q' ∈ δ(q, L(s)); ours reads the word that sequential
@@ -20,12 +20,11 @@ The module also holds the NBA preprocessing shared by the planners:
 from __future__ import annotations
 
 from collections import deque
+from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass
-from typing import Iterator, Mapping, Sequence
 
 import numpy as np
 import scipy.sparse as sp
-
 from scipy.sparse.csgraph import breadth_first_order
 
 from mrodrake.logic.nba import NBA
@@ -250,7 +249,7 @@ class Product:
     def cost(self, a: Node, b: Node) -> float:
         return self.ts.cost(a[0], b[0])
 
-    def build(self, ets: ExplicitTS | None = None) -> "ExplicitProduct":
+    def build(self, ets: ExplicitTS | None = None) -> ExplicitProduct:
         """The part of the product reachable from the initial state, as a CSR graph."""
         return ExplicitProduct.build(self, ets)
 
@@ -299,7 +298,7 @@ class ExplicitProduct:
         return mask
 
     @staticmethod
-    def build(product: Product, ets: ExplicitTS | None = None) -> "ExplicitProduct":
+    def build(product: Product, ets: ExplicitTS | None = None) -> ExplicitProduct:
         """Vectorised construction.  Every TS edge u → v gets a *move*: edges whose step crosses no rim
         AP_φ mentions share the move of their source label (δ(q, L(u))); the others get the move of their
         executed-word key, computed once per distinct (source label, crossings) among them.  Row (u, q) then

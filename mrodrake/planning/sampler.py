@@ -41,8 +41,8 @@ probability ``p_new`` and ``random`` otherwise (:meth:`SuccessorSampler.sample`)
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass, field
-from typing import Mapping
 
 import numpy as np
 from scipy.sparse import csr_matrix
@@ -62,7 +62,7 @@ class Goal:
 
     @staticmethod
     def from_cube(required: Mapping[int, int], forbidden: Mapping[int, int], target: State | None = None,
-                  ts: TransitionSystem | None = None) -> "Goal":
+                  ts: TransitionSystem | None = None) -> Goal:
         """A cube's requirements, completed by the regions and grasps of ``target`` (a TS state) for the
         entities the cube leaves free (suffix trees aim at their root state)."""
         region = dict(required)

@@ -17,7 +17,8 @@ produces, and plan on it:
   projection of L(s), and L(s') is read by the next step.
 
 A product edge (s, q) → (s', q') exists iff s → s' is a TS transition and there is an order π such that for
-**every** crossing interleaving the NBA can go from q to q' reading the step's letters (:meth:`ExecutedWords.successors`).
+**every** crossing interleaving the NBA can go from q to q' reading the step's letters
+(:meth:`ExecutedWords.successors`).
 The planned NBA states are then states of the executed run whatever the geometry does, and a monitor that
 reads the executed word in the same way checks the plan soundly.  The computation runs on families of
 NBA-state subsets over the lattice of each action's crossings (a downset lattice of at most 3^bodies nodes)
@@ -31,8 +32,8 @@ cycle) must satisfy the formula, i.e. the word graph times an NBA of ¬φ has no
 
 from __future__ import annotations
 
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
-from typing import Iterator, Sequence
 
 import numpy as np
 from scipy.sparse import csr_matrix
@@ -41,7 +42,7 @@ from scipy.sparse.csgraph import breadth_first_order, connected_components
 from mrodrake.logic.ltl import Formula, Not, atoms
 from mrodrake.logic.nba import NBA
 from mrodrake.logic.translate import translate
-from mrodrake.ts import Action, Navigate, State, Transport, TransitionSystem
+from mrodrake.ts import Action, Navigate, State, TransitionSystem, Transport
 
 
 def relevant_mask(ts: TransitionSystem, formula: Formula) -> int:
@@ -419,7 +420,7 @@ def plan_word_graph(ts: TransitionSystem, relevant: int, steps: Sequence[tuple[S
     n_steps = len(steps)
     edges: list[tuple[int, int, int]] = []
     nodes = n_steps
-    for k, (s, t, order) in enumerate(steps):
+    for k, (s, _t, order) in enumerate(steps):
         end = k + 1 if k + 1 < n_steps else loop_start
         mask = ts.label_mask(s) & relevant
         vis = [c for a in region_changing(order) if (c := crossings(ts, relevant, a))]

@@ -39,8 +39,8 @@ all are set aside without a plan, every budget doubles (so no candidate is aband
 ``iterations`` the search continues until the first plan (at most ``time_limit``, or ``extend_seconds``).
 The TS-specific parts (pruning, word semantics, vectorised transition test and costs, goals, estimated steps,
 successor sampler) are a *strategy*: :class:`ObjectStrategy` here, :class:`~mrodrake.planning.graph_stylus.
-GraphStrategy` for multi-robot graph systems.  All randomness comes from one seeded numpy Generator: the same seed and iteration budget give the same
-plan (a time limit makes the result depend on the machine's speed).
+GraphStrategy` for multi-robot graph systems.  All randomness comes from one seeded numpy Generator: the same seed
+and iteration budget give the same plan (a time limit makes the result depend on the machine's speed).
 """
 
 from __future__ import annotations
@@ -48,8 +48,8 @@ from __future__ import annotations
 import heapq
 import math
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Callable
 
 import numpy as np
 
@@ -57,9 +57,17 @@ from mrodrake.errors import NoPlanFound, UserError
 from mrodrake.logic.nba import NBA
 from mrodrake.planning.exact import blocked_note
 from mrodrake.planning.graph_stylus import GraphStrategy
-from mrodrake.planning.product import (CubeGoal, accepting_on_cycle, cube_goal, cube_infeasibility,
-                                       cycle_distances, hop_distances, hop_distances_from, prune_nba,
-                                       useful_states)
+from mrodrake.planning.product import (
+    CubeGoal,
+    accepting_on_cycle,
+    cube_goal,
+    cube_infeasibility,
+    cycle_distances,
+    hop_distances,
+    hop_distances_from,
+    prune_nba,
+    useful_states,
+)
 from mrodrake.planning.sampler import Goal, SuccessorSampler
 from mrodrake.planning.semantics import ExecutedWords
 from mrodrake.ts import State, TransitionSystem
@@ -277,7 +285,7 @@ class _Labels:
 class _Tree:
     """A STyLuS* tree over product nodes (see the module docstring)."""
 
-    def __init__(self, planner: "Stylus", root: State, root_q: int, dist: list[float],
+    def __init__(self, planner: Stylus, root: State, root_q: int, dist: list[float],
                  close_to: tuple[State, int] | None = None):
         self.p = planner
         ts = planner.ts

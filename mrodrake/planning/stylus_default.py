@@ -50,7 +50,8 @@ PREDICATES = {
 }
 
 
-def random_fts(seed: int, states: int = STATES, degree: int = DEGREE) -> tuple[np.ndarray, list[tuple[int, int, float]]]:
+def random_fts(seed: int, states: int = STATES,
+               degree: int = DEGREE) -> tuple[np.ndarray, list[tuple[int, int, float]]]:
     """(positions, undirected edges (u, v, Euclidean length)) of a createFTS-style random TS (0-based)."""
     rng = np.random.default_rng(seed)
     pos = 1.0 + (states - 1.0) * rng.random((states, 2))

@@ -1,6 +1,6 @@
-"""Adaptive navigation / transport controllers as Drake LeafSystems (paper Section III-A).
+"""Adaptive navigation / transport controllers as Drake LeafSystems (paper Sec. III-A).
 
-Continuous state: the adaptation estimates [m̂, α̂] (eq. adaptation law).  Inputs: ``state`` ([x, ẋ] of the
+Continuous state: the adaptation estimates [m̂, α̂] (eq. (11)).  Inputs: ``state`` ([x, ẋ] of the
 moving entity: the robot, or the object of a robots-object team) and an optional abstract ``task``.
 Outputs: ``u`` (navigation) or ``u_<member>`` per team member (transport, u_ℓ = cf_ℓ u), and ``estimates``.
 
@@ -12,8 +12,9 @@ abstract ``task`` input (a :class:`TaskCommand`), which a supervisor drives: ``N
 controller (zero inputs, frozen estimates, so idle controllers do not drift), and a new *episode* resets the
 estimates to the task's m̂(0), α̂(0) (``gains.initial_estimates(bodies)``: α̂(0) at the design bound of the
 entity's bodies, 1 for a robot, 1 + members for a team) at the start of the next step (a per-step
-unrestricted update on the controller's own state), while a new task within the same episode keeps them.  So one controller per robot
-(and per team used by a plan) can stay wired for a whole mission while the supervisor only swaps tasks.
+unrestricted update on the controller's own state), while a new task within the same episode keeps them.  So one
+controller per robot (and per team used by a plan) can stay wired for a whole mission while the supervisor only
+swaps tasks.
 
 One cache entry evaluates the law (map, φ, v_d, v̇_d) once per context change; the outputs and the
 estimate derivatives all read it (one map evaluation per derivative evaluation of the closed loop).
@@ -21,7 +22,7 @@ estimate derivatives all read it (one map evaluation per derivative evaluation o
 
 from __future__ import annotations
 
-from typing import Sequence
+from collections.abc import Sequence
 
 import numpy as np
 from pydrake.common.value import AbstractValue
@@ -119,7 +120,7 @@ class _AdaptiveController(LeafSystem):
 
 
 class NavigationController(_AdaptiveController):
-    """Adaptive navigation law of one robot (paper Sec. III-A 1)): output ``u`` (2)."""
+    """Adaptive navigation law of one robot (paper Sec. III-A, 1) Robot Navigation): output ``u`` (2)."""
 
     def __init__(self, task: NavigationTask | None = None, gains: AdaptiveGains | None = None,
                  name: str = "navigation_controller"):
@@ -131,9 +132,10 @@ class NavigationController(_AdaptiveController):
 
 
 class TransportController(_AdaptiveController):
-    """Adaptive transport law of a robots-object team (paper Sec. III-A 2)): the navigation law of the
-    coupled entity with estimates m̂_A,j, α̂_A,j, split as u_ℓ = cf_ℓ u to outputs ``u_<member>``; the
-    total entity input is also available as ``u``.  ``task.cf`` must have one entry per member."""
+    """Adaptive transport law of a robots-object team (paper Sec. III-A, 2) Cooperative Object
+    Transportation): the navigation law of the coupled entity with estimates m̂_A,j, α̂_A,j, split as
+    u_ℓ = cf_ℓ u to outputs ``u_<member>``; the total entity input is also available as ``u``.  ``task.cf`` must
+    have one entry per member."""
 
     def __init__(self, members: Sequence[str], task: NavigationTask | None = None,
                  gains: AdaptiveGains | None = None, name: str = "transport_controller"):

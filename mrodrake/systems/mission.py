@@ -1,4 +1,4 @@
-"""Mission execution in ONE Drake diagram (paper Section III-A, sequential execution of the plan).
+"""Mission execution in ONE Drake diagram (paper Sec. III-A, sequential execution of the plan).
 
 :class:`Mission` places the whole executed run (:mod:`mrodrake.execution.placement`), builds the diagram with
 the ``AddX`` helpers of :mod:`mrodrake.systems.builders` (plants, controllers, team plants, state switches,
@@ -12,9 +12,9 @@ recorded and writes the outputs (CSV logs, ``replay.html``, figures).
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Callable
 
 import numpy as np
 import pandas as pd
@@ -30,8 +30,13 @@ from mrodrake.execution.sequencer import ExecState, Sequencer, Status, couplings
 from mrodrake.execution.steps import expand_steps
 from mrodrake.planning.plan import Plan, PlanVerificationError, task_nba, task_words
 from mrodrake.scenario import Scenario
-from mrodrake.systems.builders import (AddEntityPlants, AddNavigationControllers, AddStateSwitches, AddSupervisor,
-                                       AddTeams)
+from mrodrake.systems.builders import (
+    AddEntityPlants,
+    AddNavigationControllers,
+    AddStateSwitches,
+    AddSupervisor,
+    AddTeams,
+)
 from mrodrake.systems.transition import TransitionResult
 from mrodrake.ts import TransitionSystem
 
@@ -197,7 +202,7 @@ class Mission:
                                              max_step_size=max_step, use_error_control=True), self.simulator)
         ctx = self.simulator.get_mutable_context()
         init = np.asarray(self.placement.initial, dtype=float).reshape(-1, 2)
-        for k, (e, p) in enumerate(self.plants.all().items()):
+        for e, p in self.plants.all().items():
             p.set_state(p.GetMyMutableContextFromRoot(ctx), init[entities.index(e)], (0.0, 0.0))
         for t in self.teams:
             t.plant.set_state(t.plant.GetMyMutableContextFromRoot(ctx), init[len(scenario.robots) + t.obj], (0.0, 0.0))
@@ -236,7 +241,7 @@ class Mission:
         """Ask a running :meth:`run` to stop at the next integration step (e.g. from a SIGINT handler)."""
         self._stop = True
 
-    def run(self, progress: Callable[[int, int], None] | None = None, t_max: float = 1e7) -> "MissionLog":
+    def run(self, progress: Callable[[int, int], None] | None = None, t_max: float = 1e7) -> MissionLog:
         """Simulate until the supervisor ends the mission or ``t_max`` (one ``AdvanceTo``; call again to go
         on); ``progress(done, total)`` is called whenever a plan step completes.  Returns :meth:`log`.
         BLAS runs single-threaded meanwhile: a multithreaded BLAS sums in an order that depends on the

@@ -1,4 +1,4 @@
-"""Uncertain plants as Drake LeafSystems (paper Section II).
+"""Uncertain plants as Drake LeafSystems (paper Sec. II-B).
 
 Every plant has continuous state [x(2), ẋ(2)] (generalised positions x, velocities ẋ).  The TRUE mass and
 friction parameters are numeric parameters ``[mass, friction scale, friction frequency]`` (one parameter
@@ -6,9 +6,9 @@ vector per body, ``DeclareNumericParameter``), so a Monte-Carlo run varies them 
 rebuilding the diagram; controllers never read them.  The friction model kind (``paper`` / ``viscous``,
 scenario :class:`~mrodrake.scenario.Friction`) is structural and fixed at construction.
 
-* :class:`RobotPlant`:   m_i ẍ_i + f_i(x_i, ẋ_i) = u_i − h_i        (eq. agent dynamics navigation)
-* :class:`ObjectPlant`:  m^o_j ẍ^o_j + f^o_j(x^o_j, ẋ^o_j) = h^o_j    (eq. object dynamics)
-* :class:`CoupledPlant`: m_A,j ẍ^o_j + f_A,j(x^o_j, ẋ^o_j) = Σ_{i∈A} u_i  (eq. coupled dynamics), with
+* :class:`RobotPlant`:   m_i ẍ_i + f_i(x_i, ẋ_i) = u_i − h_i        (eq. (1))
+* :class:`ObjectPlant`:  m^o_j ẍ^o_j + f^o_j(x^o_j, ẋ^o_j) = h^o_j    (eq. (2))
+* :class:`CoupledPlant`: m_A,j ẍ^o_j + f_A,j(x^o_j, ẋ^o_j) = Σ_{i∈A} u_i  (eq. (5)), with
   m_A,j = m^o_j + Σ m_i and f_A,j = f^o_j(x^o_j, ẋ^o_j) + Σ f_i(x^o_j − d^o_ij, ẋ^o_j); robot i sits
   rigidly at x_i = x^o_j + offset_i (offset_i = −d^o_ij).
 
@@ -23,7 +23,7 @@ version changes (an event may change only its own system's state), and a parked 
 from __future__ import annotations
 
 import math
-from typing import Sequence
+from collections.abc import Sequence
 
 import numpy as np
 from pydrake.common.value import AbstractValue
@@ -38,7 +38,7 @@ FRICTION_MODELS = ("paper", "viscous")
 def friction(model: str, scale: float, frequency: float, x: np.ndarray, xdot: np.ndarray) -> np.ndarray:
     """Friction-like term f(x, ẋ) of Assumption 1 (scenario ``Friction``).
 
-    ``paper``: scale · sin(frequency (x₁ + x₂)) · diag(exp(−|ẋ_k|) + 1) ẋ (paper Section IV);
+    ``paper``: scale · sin(frequency (x₁ + x₂)) · diag(exp(−|ẋ_k|) + 1) ẋ (paper Sec. IV);
     ``viscous``: scale · ẋ.  Both satisfy ‖f‖ ≤ α‖ẋ‖ (α = 2 scale resp. scale).
     """
     if model == "paper":
@@ -96,7 +96,7 @@ class _PointMassPlant(LeafSystem):
 
 
 class RobotPlant(_PointMassPlant):
-    """Robot i: m_i ẍ + f_i(x, ẋ) = u − h (eq. agent dynamics navigation).
+    """Robot i: m_i ẍ + f_i(x, ẋ) = u − h (eq. (1)).
 
     Ports: input ``u`` (2), optional input ``h`` (2, grasp force, zero if unconnected), output ``state``
     [x, ẋ].  Numeric parameter 0: [m_i, friction scale, friction frequency].
@@ -110,7 +110,7 @@ class RobotPlant(_PointMassPlant):
         self.state_port = self.DeclareStateOutputPort("state", ContinuousStateIndex(0))
 
     @classmethod
-    def from_scenario(cls, scenario: Scenario, robot: str | int) -> "RobotPlant":
+    def from_scenario(cls, scenario: Scenario, robot: str | int) -> RobotPlant:
         r = scenario.robots[robot if isinstance(robot, int) else scenario.robot_names.index(robot)]
         return cls(r.mass, r.friction, name=r.name)
 
@@ -123,7 +123,7 @@ class RobotPlant(_PointMassPlant):
 
 
 class ObjectPlant(_PointMassPlant):
-    """Object j: m^o_j ẍ + f^o_j(x, ẋ) = h (eq. object dynamics).
+    """Object j: m^o_j ẍ + f^o_j(x, ẋ) = h (eq. (2)).
 
     Ports: optional input ``h`` (2, total force of the grasping robots, zero if unconnected), output
     ``state``.  Numeric parameter 0: [m^o_j, friction scale, friction frequency].
@@ -136,7 +136,7 @@ class ObjectPlant(_PointMassPlant):
         self.state_port = self.DeclareStateOutputPort("state", ContinuousStateIndex(0))
 
     @classmethod
-    def from_scenario(cls, scenario: Scenario, obj: str | int) -> "ObjectPlant":
+    def from_scenario(cls, scenario: Scenario, obj: str | int) -> ObjectPlant:
         o = scenario.objects[obj if isinstance(obj, int) else scenario.object_names.index(obj)]
         return cls(o.mass, o.friction, name=o.name)
 
@@ -149,7 +149,7 @@ class ObjectPlant(_PointMassPlant):
 
 
 class CoupledPlant(_PointMassPlant):
-    """Object j rigidly grasped by team A (eq. coupled dynamics): m_A,j ẍ^o + f_A,j(x^o, ẋ^o) = Σ u_i.
+    """Object j rigidly grasped by team A (eq. (5)): m_A,j ẍ^o + f_A,j(x^o, ẋ^o) = Σ u_i.
 
     State: the object's [x^o, ẋ^o].  Inputs: ``u_<member>`` (2) per team member.  Outputs: ``state`` (the
     object / entity state) and ``state_<member>`` = [x^o + offset_i, ẋ^o] per member.  Numeric parameter 0
@@ -180,7 +180,7 @@ class CoupledPlant(_PointMassPlant):
         ]
 
     @classmethod
-    def from_scenario(cls, scenario: Scenario, obj: str | int, team: Sequence[str | int], offsets=None) -> "CoupledPlant":
+    def from_scenario(cls, scenario: Scenario, obj: str | int, team: Sequence[str | int], offsets=None) -> CoupledPlant:
         """Team plant of object ``obj`` and robots ``team`` (offsets default: ``geometry.grasp_layout``)."""
         from mrodrake.geometry import grasp_layout
 
@@ -259,7 +259,7 @@ class SyncedObjectPlant(_SyncedBody, ObjectPlant):
 
 class SyncedCoupledPlant(CoupledPlant):
     """CoupledPlant whose grasp offsets come from the ``sync`` command (the members' actual offsets at
-    engagement); outputs ``member_<name>`` = [x^o + offset_i, ẋ^o] (eq. coupled dynamics)."""
+    engagement); outputs ``member_<name>`` = [x^o + offset_i, ẋ^o] (eq. (5))."""
 
     def __init__(self, object_mass, object_friction, members, member_masses, member_frictions, name="team"):
         super().__init__(object_mass, object_friction, members, member_masses, member_frictions,
@@ -272,7 +272,8 @@ class SyncedCoupledPlant(CoupledPlant):
 
     def _offsets(self, context) -> np.ndarray:
         off = self.sync_port.Eval(context).offsets
-        return np.asarray(off, dtype=float).reshape(len(self.members), 2) if len(off) else np.zeros((len(self.members), 2))
+        n = len(self.members)
+        return np.asarray(off, dtype=float).reshape(n, 2) if len(off) else np.zeros((n, 2))
 
     def _member_out(self, k: int):
         def calc(context, output):

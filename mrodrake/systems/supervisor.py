@@ -11,7 +11,7 @@ entity's state: its own plant, or the team plant it is coupled to).  The simulat
 
 from __future__ import annotations
 
-from typing import Mapping
+from collections.abc import Mapping
 
 import numpy as np
 from pydrake.common.value import AbstractValue

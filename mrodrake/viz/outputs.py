@@ -44,8 +44,8 @@ def write_mission(log, out_dir) -> list[Path]:
         res = log.transition_result(max(recs, key=lambda r: r.t_end - r.t_start))
         if len(res.log) < 2:
             continue
-        attempt(out / "figures" / f"{f_traj}_{res.entity}.png", lambda p: figure_trajectory(res, p))
-        attempt(out / "figures" / f"{f_sig}_{res.entity}.png", lambda p: figure_signals(res, p))
+        attempt(out / "figures" / f"{f_traj}_{res.entity}.png", lambda p, res=res: figure_trajectory(res, p))
+        attempt(out / "figures" / f"{f_sig}_{res.entity}.png", lambda p, res=res: figure_signals(res, p))
     if failed:
         raise OutputError(f"could not write {len(failed)} output file(s) to {out}/ ({'; '.join(failed)}); "
                           f"{len(written)} written", written)

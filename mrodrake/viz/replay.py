@@ -21,7 +21,6 @@ small: Meshcat's 2.2 MB viewer plus a few hundred kB of scene and animation.
 from __future__ import annotations
 
 import math
-import time
 from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
@@ -35,7 +34,7 @@ from mrodrake.errors import UserError
 
 __all__ = [
     "ROOT", "write_replay", "scene_only", "choose_speedup", "view_bounds", "entity_colors",
-    "synthetic_mission", "bench_replay",
+    "synthetic_mission",
 ]
 
 #: Root of everything this module draws in a Meshcat scene tree; entity ``e`` is ``ROOT/entities/e``.
@@ -712,34 +711,3 @@ def synthetic_mission(scenario, duration: float = 200.0, *, dt: float = 0.1, spe
     grasps = pd.DataFrame(grasp_rows, columns=["t_start", "t_end", "robot", "object"])
     grasps = grasps[grasps["t_start"] <= duration].assign(t_end=lambda g: g["t_end"].clip(upper=duration))
     return pd.concat(frames, ignore_index=True), grasps.reset_index(drop=True)
-
-
-def bench_replay(scenario_path=None, durations=(200.0, 1000.0, 3000.0), out_dir=None, seed: int = 0) -> list[dict]:
-    """Time :func:`write_replay` on synthetic missions (case study I by default) and print a table:
-    simulated seconds, speed-up, replay seconds, frames, write time, HTML size."""
-    import tempfile
-
-    from mrodrake.scenario import load_scenario
-
-    if scenario_path is None:
-        scenario_path = Path(__file__).resolve().parents[2] / "scenarios" / "case_study_1.yaml"
-    scenario = load_scenario(scenario_path)
-    rows = []
-    with tempfile.TemporaryDirectory() as tmp:
-        out = Path(out_dir) if out_dir is not None else Path(tmp)
-        for duration in durations:
-            traj, grasps = synthetic_mission(scenario, duration, seed=seed)
-            start = time.perf_counter()
-            html = write_replay(scenario, traj, out / f"replay_{duration:g}.html", grasps=grasps)
-            wall = time.perf_counter() - start
-            speedup = choose_speedup(duration)
-            rows.append({"simulated_s": duration, "entities": len(scenario.robots) + len(scenario.objects),
-                         "speedup": speedup, "replay_s": duration / speedup,
-                         "frames": int(math.ceil(duration / speedup * 30 - 1e-9)) + 1,
-                         "write_s": wall, "html_MB": html.stat().st_size / 1e6})
-    print(f"{'simulated_s':>11} {'entities':>8} {'speedup':>7} {'replay_s':>8} {'frames':>6} {'write_s':>7} "
-          f"{'html_MB':>7}")
-    for r in rows:
-        print(f"{r['simulated_s']:>11g} {r['entities']:>8d} {r['speedup']:>7g} {r['replay_s']:>8.1f} "
-              f"{r['frames']:>6d} {r['write_s']:>7.2f} {r['html_MB']:>7.2f}")
-    return rows

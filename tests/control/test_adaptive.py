@@ -42,7 +42,10 @@ def room_map():
     return PointWorldMap.build(ROOM)
 
 
-def make_task(pw, start=START, goal=GOAL, v_max=2.0, gains=AdaptiveGains(), cf=1):
+DEFAULT_GAINS = AdaptiveGains()
+
+
+def make_task(pw, start=START, goal=GOAL, v_max=2.0, gains=DEFAULT_GAINS, cf=1):
     return NavigationTask.build(pw, goal, gains, k1=1.0, k2=1.0, r_bar_cap=0.1, tau_cap=0.01, cf=cf,
                                 start=start, v_max=v_max)
 
@@ -155,7 +158,7 @@ def test_goal_or_start_beyond_the_circle_barrier_is_rejected():
 
 
 def test_circle_barrier_blows_up_at_rho0():
-    """d_0 = ρ₀² − ‖χ‖² → 0 as ‖χ‖ → ρ₀, so φ → ∞ (property 1 of Def. 2nd-order NF on the circle of radius ρ₀).
+    """d_0 = ρ₀² − ‖χ‖² → 0 as ‖χ‖ → ρ₀, so φ → ∞ (property 1 of Def. 3 on the circle of radius ρ₀).
 
     Near the pole β_0 ≈ τ_0³ / (10 d_0³) with d_0 ≈ 2ρ₀ε at ‖χ‖ = ρ₀ − ε: ε = 1e-6 gives k2 β_0 ≈ 1.6e10 for
     τ_0 = 0.05; φ grows monotonically along the ray (χ·∇φ > 0) and is infinite at ‖χ‖ = ρ₀."""
@@ -224,7 +227,7 @@ def test_task_uses_the_maps_circle_deficit(room_map):
 
 
 def test_local_barrier_phi_reduces_to_the_papers_phi_for_equal_taus():
-    """With all τ_ℓ = τ, φ, ∇φ, ∇²φ equal navfunc's single-τ φ (Def. 2nd-order NF)."""
+    """With all τ_ℓ = τ, φ, ∇φ, ∇²φ equal navfunc's single-τ φ (Def. 3)."""
     rng = np.random.default_rng(1)
     b, goal, tau = rng.uniform(-0.5, 0.5, size=(4, 2)), np.array([0.1, 0.2]), 0.01
     ours = LocalBarrierNavigationFunction(goal, b, np.full(5, tau), 0.3, 2.0)
@@ -276,7 +279,7 @@ def test_task_is_shared_not_copied_by_deepcopy(room_map):
 
 
 def _closed_loop(task, mass, fr_scale, t_end):
-    """Numpy simulation of m ẍ + f = u (paper friction), law + adaptation (eq. adaptation law)."""
+    """Numpy simulation of m ẍ + f = u (paper friction), law + adaptation (eq. (11))."""
 
     def rhs(_, y):
         x, v, m_hat, a_hat = y[:2], y[2:4], y[4], y[5]

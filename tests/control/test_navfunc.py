@@ -8,7 +8,7 @@ import shapely
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from mrodrake.control.bench_map import office_like_free_space
+from mrodrake.bench.control import office_like_free_space
 from mrodrake.control.navfunc import (
     NavigationFunction,
     beta,
@@ -55,7 +55,7 @@ def test_beta_derivatives_match_finite_differences():
 
 
 def test_beta_property_4_tilde_beta_strictly_decreasing():
-    """β''(x)·x·√x strictly decreasing on (0, τ) (Def. 2nd-order NF, property 4), on a dense grid."""
+    """β''(x)·x·√x strictly decreasing on (0, τ) (Def. 3, property 4), on a dense grid."""
     for tau in (1e-5, 1e-2, 1.0):
         x = np.geomspace(1e-6 * tau, tau, 200000, endpoint=False)
         _, _, ddb = beta(x, tau)

@@ -13,7 +13,7 @@ from scipy.integrate import quad
 from shapely.geometry import MultiPolygon, Point, Polygon, box
 from shapely.ops import unary_union
 
-from mrodrake.control.bench_map import office_like_free_space
+from mrodrake.bench.control import office_like_free_space
 from mrodrake.control.pointworld import PointWorldMap, _kernel, _local_width, _separation
 from mrodrake.errors import UserError
 
@@ -371,7 +371,7 @@ def test_local_width_sees_a_wall_behind_many_own_samples():
 def test_case_study_map_collapses_holes_in_one_solve():
     """Case study I, longest navigation (holes in corridors along the outer wall, open space behind them):
     the first discretisation already makes every hole's image smaller than 0.08 x its separation."""
-    from mrodrake.control.bench import longest_navigation
+    from mrodrake.bench.control import longest_navigation
     from mrodrake.control.tasks import MAP_OPTIONS
 
     free = longest_navigation()[-1].polygon

@@ -16,7 +16,7 @@ from hypothesis import strategies as st
 from mrodrake.execution.placement import OpKind, PlacementError, layout_slots, place_run
 from mrodrake.execution.steps import StepSpec
 from mrodrake.scenario import load_scenario, scenario_from_dict
-from mrodrake.ts import Grasp, Release, Transport, TransitionSystem
+from mrodrake.ts import Grasp, Release, TransitionSystem, Transport
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -87,7 +87,7 @@ def test_random_runs_place_valid_configurations(case1, seed):
 def test_teams_move_rigidly_and_release_clear_of_the_object(case1):
     ts = case1
     s0 = ts.initial  # r1 p1, r2 p3, r3 p4, o1 p3(?), o2 p1
-    N, M = ts.N, ts.M
+    N = ts.N
     j = 1  # o2 in p1 with r1 there; bring r3 to p1, grasp with r1 and r3, carry to p4, release
     k = s0[N + j]
     s1 = ts.make_state([s0[0], s0[1], k], ts.objects_of(s0), [-1] * N)
@@ -119,7 +119,6 @@ def test_unrealisable_geometry_is_reported_before_simulating():
                             "initial_region": "p3"})
     data["task"] = {"formula": "F o1_p3"}
     ts = TransitionSystem(scenario_from_dict(data))
-    N = ts.N
     s0 = ts.initial  # r1 p1, r2 p2, o1 p1, o2 p3
     s1 = ts.make_state([0, 0], ts.objects_of(s0), [-1, -1])
     s2 = ts.make_state([0, 0], ts.objects_of(s0), [0, 0])

@@ -4,7 +4,7 @@ import io
 
 import pytest
 
-from mrodrake.logic.bench import run_ltl_benchmark
+from mrodrake.bench.ltl import run_ltl_benchmark
 
 
 @pytest.mark.slow

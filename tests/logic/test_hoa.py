@@ -7,8 +7,8 @@ from hypothesis import given, settings
 from mrodrake.errors import UserError
 from mrodrake.logic import ltl
 from mrodrake.logic.hoa import read_hoa
-from mrodrake.logic.translate import translate
 from mrodrake.logic.lasso import evaluate_lasso
+from mrodrake.logic.translate import translate
 
 from .strategies import formulas_3_or_4_props
 

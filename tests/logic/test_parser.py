@@ -8,8 +8,7 @@ from hypothesis import given, settings
 
 from mrodrake.errors import UserError
 from mrodrake.logic import ltl
-from mrodrake.logic.ltl import (FALSE, TRUE, And, Ap, Equiv, F, G, Implies, M, Not, Or, R, U, W, X, Xor,
-                                atoms, parse)
+from mrodrake.logic.ltl import FALSE, TRUE, And, Ap, Equiv, F, G, Implies, M, Not, Or, R, U, W, X, Xor, atoms, parse
 from mrodrake.logic.translate import translate
 
 from .strategies import formulas
@@ -199,7 +198,8 @@ def test_trees_up_to_the_depth_limit_translate_and_deeper_ones_are_rejected_at_t
     assert translate(f).num_states == ltl.MAX_DEPTH + 1  # X^199 a: a chain of 200 states plus the sink
     with pytest.raises(UserError) as ei:
         parse("X " * ltl.MAX_DEPTH + "a")
-    assert str(ei.value) == f"formula:1: formula nested deeper than {ltl.MAX_DEPTH} operators (the limit of the LTL translation)"
+    assert str(ei.value) == (f"formula:1: formula nested deeper than {ltl.MAX_DEPTH} operators "
+                             "(the limit of the LTL translation)")
     assert ei.value.detail.splitlines()[1] == "^"  # the outermost X, at column 1
 
 

@@ -102,7 +102,8 @@ def test_small_products_are_decided_exactly():
     with pytest.raises(UserError) as e:
         plan_scenario(sc, time_limit=60.0)
     msg = str(e.value)
-    assert msg.startswith("task is unsatisfiable: no accepting cycle is reachable in the product of the TS (1125 states")
+    assert msg.startswith("task is unsatisfiable: no accepting cycle is reachable in the product of the TS "
+                          "(1125 states")
     assert not isinstance(e.value, NoPlanFound)
 
 

@@ -17,8 +17,13 @@ from hypothesis import strategies as st
 from mrodrake import cli
 from mrodrake.errors import UserError
 from mrodrake.logic.translate import translate
-from mrodrake.planning.graph import (graph_ts_from_dict, graph_ts_from_networkx, is_graph_task, load_graph_ts,
-                                     write_graph_task)
+from mrodrake.planning.graph import (
+    graph_ts_from_dict,
+    graph_ts_from_networkx,
+    is_graph_task,
+    load_graph_ts,
+    write_graph_task,
+)
 from mrodrake.planning.plan import Plan, graph_task_nba, plan_graph
 from mrodrake.planning.stylus_default import PREDICATES, stylus_default_ts
 

@@ -11,8 +11,15 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from mrodrake.logic.nba import NBA
-from mrodrake.planning.product import (Product, accepting_on_cycle, cube_infeasibility, cycle_distances,
-                                       hop_distances, prune_nba, useful_states)
+from mrodrake.planning.product import (
+    Product,
+    accepting_on_cycle,
+    cube_infeasibility,
+    cycle_distances,
+    hop_distances,
+    prune_nba,
+    useful_states,
+)
 from mrodrake.planning.stylus import _Transitions
 
 

@@ -62,7 +62,8 @@ def letters(ts, masks):
     return [frozenset(p for b, p in enumerate(ts.propositions) if m >> b & 1) for m in masks]
 
 
-@settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture])
+@settings(max_examples=40, deadline=None,
+          suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture])
 @given(small_formulas(), st.integers(0, 10**6), st.integers(0, 3), st.integers(1, 3))
 def test_plan_word_check_agrees_with_the_lasso_evaluator(tiny, f, seed, n_prefix, n_cycle):
     ts = tiny.ts
@@ -87,7 +88,8 @@ def test_plan_word_check_agrees_with_the_lasso_evaluator(tiny, f, seed, n_prefix
         assert not verdict  # a violating executed lasso is found by the model check
 
 
-@settings(max_examples=30, deadline=None, suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture])
+@settings(max_examples=30, deadline=None,
+          suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture])
 @given(small_formulas(), st.integers(0, 10**6))
 def test_successors_hold_for_every_interleaving_of_their_order(tiny, f, seed):
     """For every product successor q' and its order, each word of that order reaches q' from q (directly,

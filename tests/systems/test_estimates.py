@@ -5,8 +5,8 @@ from pathlib import Path
 
 import numpy as np
 
-from mrodrake.scenario import load_scenario
 from mrodrake.run import run_mission
+from mrodrake.scenario import load_scenario
 
 TINY = Path(__file__).resolve().parents[2] / "scenarios" / "tiny.yaml"
 

@@ -8,10 +8,10 @@ import pandas as pd
 import pytest
 import shapely
 
-from mrodrake.geometry import polygon
 from mrodrake.execution.monitor import WordMonitor, entity_regions
-from mrodrake.planning.plan import task_words
 from mrodrake.execution.steps import expand_steps
+from mrodrake.geometry import polygon
+from mrodrake.planning.plan import task_words
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -20,8 +20,8 @@ ROOT = Path(__file__).resolve().parents[2]
 @pytest.fixture(scope="module", params=["case_study_1", pytest.param("case_study_2", marks=pytest.mark.slow)])
 def mission(request, tmp_path_factory):
     from mrodrake.planning.plan import plan_scenario
-    from mrodrake.scenario import load_scenario
     from mrodrake.run import run_mission
+    from mrodrake.scenario import load_scenario
 
     scn = load_scenario(ROOT / "scenarios" / f"{request.param}.yaml")
     plan = plan_scenario(scn, "stylus", seed=0)

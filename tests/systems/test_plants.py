@@ -1,4 +1,4 @@
-"""Uncertain plants as Drake systems (paper eqs. agent dynamics, object dynamics, coupled dynamics)."""
+"""Uncertain plants as Drake systems (paper eqs. (1), (2), (5))."""
 
 from __future__ import annotations
 
@@ -32,7 +32,8 @@ def test_friction_models_satisfy_assumption_1(x1, x2, v1, v2, scale, freq):
     """‖f(x, ẋ)‖ ≤ α‖ẋ‖ with α = 2·scale (paper model) and α = scale (viscous)."""
     x, v = np.array([x1, x2]), np.array([v1, v2])
     fp = friction("paper", scale, freq, x, v)
-    expected = scale * math.sin(freq * (x1 + x2)) * np.array([(math.exp(-abs(v1)) + 1) * v1, (math.exp(-abs(v2)) + 1) * v2])
+    expected = scale * math.sin(freq * (x1 + x2)) * np.array([(math.exp(-abs(v1)) + 1) * v1,
+                                                              (math.exp(-abs(v2)) + 1) * v2])
     np.testing.assert_allclose(fp, expected, rtol=1e-12, atol=1e-12)
     assert np.linalg.norm(fp) <= 2 * scale * np.linalg.norm(v) * (1 + 1e-12) + 1e-300
     np.testing.assert_allclose(friction("viscous", scale, freq, x, v), scale * v)

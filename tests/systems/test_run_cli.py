@@ -10,8 +10,8 @@ import pandas as pd
 from mrodrake import cli
 from mrodrake.control.adaptive import NavigationTask
 from mrodrake.planning.plan import plan_scenario
-from mrodrake.scenario import load_scenario
 from mrodrake.run import run_mission
+from mrodrake.scenario import load_scenario
 from mrodrake.systems.plants import SyncedCoupledPlant
 
 ROOT = Path(__file__).resolve().parents[2]

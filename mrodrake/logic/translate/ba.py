@@ -27,10 +27,10 @@ class BA:
     def size(self) -> tuple[int, int]:
         return (self.n, sum(len(e) for e in self.edges))
 
-    def copy(self) -> "BA":
+    def copy(self) -> BA:
         return BA([dict(e) for e in self.edges], list(self.acc), self.init, self.bdd)
 
-    def restrict(self, keep: list[int]) -> "BA":
+    def restrict(self, keep: list[int]) -> BA:
         """Sub-automaton on ``keep`` (which contains ``init``), renumbered in the order of ``keep``."""
         new = {q: i for i, q in enumerate(keep)}
         edges = [{new[d]: g for d, g in self.edges[q].items() if d in new} for q in keep]
@@ -45,7 +45,7 @@ class BA:
                 out.add(comp[0])
         return out
 
-    def prune(self, trivial_accepting: bool) -> "BA | None":
+    def prune(self, trivial_accepting: bool) -> BA | None:
         """Keep reachable states that can reach an accepting cycle (None if the language is empty).
 
         A state in a trivial SCC is visited at most once by any run, so its acceptance is irrelevant; it

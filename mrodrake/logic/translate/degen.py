@@ -4,7 +4,7 @@ a level cache, as in Spot's ``degeneralize()`` (``spot/twaalgos/degen.cc``)."""
 
 from __future__ import annotations
 
-from typing import Sequence
+from collections.abc import Sequence
 
 from mrodrake.logic.bdd import BDD
 from mrodrake.logic.graph import sccs
