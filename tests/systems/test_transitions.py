@@ -26,11 +26,11 @@ from mrodrake.control.freespace import Disk
 from mrodrake.control.pointworld import PointWorldMap
 from mrodrake.errors import UserError
 from mrodrake.execution.commands import TaskCommand
-from mrodrake.scenario import DESIGN_MASS_RATIO
+from mrodrake.scenario import DESIGN_MASS_RATIO, load_scenario
 from mrodrake.systems.controllers import NavigationController, TransportController
 from mrodrake.systems.transition import simulate_transition
 from mrodrake.viz.figures import figure_signals, figure_trajectory
-from tests.helpers.transitions import CASE1, check_guarantees
+from tests.helpers.transitions import CASE1, SCEN, check_guarantees
 from tests.helpers.transitions import transition_property as _property
 
 
