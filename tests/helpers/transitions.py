@@ -81,7 +81,11 @@ def check_guarantees(r) -> None:
     assert clear > 0.0, f"{r.task.label}: clearance {clear:.4f} m to {what}"
     assert np.all(np.abs(log["m_hat"]) < M_HAT_BOUND)
     assert np.all((log["alpha_hat"] >= 0.0) & (log["alpha_hat"] < M_HAT_BOUND))
-    assert np.all(np.diff(log["alpha_hat"]) >= -1e-12)  # dα̂/dt = k_α‖e_v‖² ≥ 0
+    # dα̂/dt = k_α‖e_v‖² ≥ 0: α̂ never falls, up to the implicit-Euler spans (stiff stretches), whose Newton
+    # iteration stops at a residual relative to the state (seen: -6e-9 at α̂ = 5.01); 1e-7 relative still
+    # catches a reset to α̂(0) or a sign error of the law (α̂ gains ~1e-2 over a transition)
+    a = log["alpha_hat"].to_numpy()
+    assert np.all(np.diff(a) >= -1e-7 * np.maximum(1.0, np.abs(a[1:])))
 
 
 def random_spot(region, radius, others, rng):
