@@ -83,6 +83,19 @@ class Transport:
 Action = Navigate | Grasp | Release | Transport
 
 
+
+def reachable(C: np.ndarray, k: int) -> set[int]:
+    """Regions reachable from region k along the connection matrix C (k included)."""
+    seen, todo = {int(k)}, [int(k)]
+    while todo:
+        u = todo.pop()
+        for v in np.flatnonzero(C[u]):
+            if int(v) not in seen:
+                seen.add(int(v))
+                todo.append(int(v))
+    return seen
+
+
 class TransitionSystem:
     """TS of a scenario with implicit successors; see :meth:`build` for the explicit reachable graph."""
 
@@ -184,15 +197,7 @@ class TransitionSystem:
 
     def reach(self, radius: float, k: int) -> list[int]:
         """Regions an entity of ``radius`` can ever get to from region k (travelling region to region)."""
-        C = self.connections(radius)
-        seen, todo = {k}, [k]
-        while todo:
-            u = todo.pop()
-            for v in np.flatnonzero(C[u]):
-                if int(v) not in seen:
-                    seen.add(int(v))
-                    todo.append(int(v))
-        return sorted(seen)
+        return sorted(reachable(self.connections(radius), k))
 
     def unreachable(self) -> list[str]:
         """One line per entity that can never reach some region from where it starts: robots by their

@@ -347,6 +347,16 @@ def task_words(scenario, ts: TransitionSystem) -> tuple[Formula, NBA, ExecutedWo
     return f, nba, ExecutedWords(ts, nba, relevant_mask(ts, f))
 
 
+def _check_budget(planner: str, iterations: int | None, time_limit: float | None) -> None:
+    """One-line UserErrors for an unknown planner or a budget that is not positive."""
+    if planner not in ("stylus", "exact"):
+        raise UserError(f"--planner: unknown planner '{planner}' (expected 'stylus' or 'exact')")
+    if iterations is not None and iterations <= 0:
+        raise UserError(f"--iterations: must be > 0, got {iterations}")
+    if time_limit is not None and not time_limit > 0:
+        raise UserError(f"--time-limit: must be > 0, got {time_limit}")
+
+
 def plan_scenario(scenario, planner: str = "stylus", seed: int | None = None, iterations: int | None = None,
                   time_limit: float | None = None, progress: Callable[[dict], None] | None = None) -> Plan:
     """Plan a scenario (a :class:`~mrodrake.scenario.Scenario` or a YAML path) and return the verified plan.
@@ -360,12 +370,7 @@ def plan_scenario(scenario, planner: str = "stylus", seed: int | None = None, it
     """
     if not isinstance(scenario, Scenario):
         scenario = load_scenario(scenario)
-    if planner not in ("stylus", "exact"):
-        raise UserError(f"--planner: unknown planner '{planner}' (expected 'stylus' or 'exact')")
-    if iterations is not None and iterations <= 0:
-        raise UserError(f"--iterations: must be > 0, got {iterations}")
-    if time_limit is not None and not time_limit > 0:
-        raise UserError(f"--time-limit: must be > 0, got {time_limit}")
+    _check_budget(planner, iterations, time_limit)
     t0 = time.perf_counter()
     ts = TransitionSystem(scenario)
     formula, nba, words = task_words(scenario, ts)
@@ -421,12 +426,7 @@ def plan_graph(ts, formula: str | None = None, planner: str = "stylus", seed: in
     STyLuS* finds none."""
     if not isinstance(ts, GraphTS):
         ts = load_graph_ts(ts)
-    if planner not in ("stylus", "exact"):
-        raise UserError(f"--planner: unknown planner '{planner}' (expected 'stylus' or 'exact')")
-    if iterations is not None and iterations <= 0:
-        raise UserError(f"--iterations: must be > 0, got {iterations}")
-    if time_limit is not None and not time_limit > 0:
-        raise UserError(f"--time-limit: must be > 0, got {time_limit}")
+    _check_budget(planner, iterations, time_limit)
     t0 = time.perf_counter()
     f, nba = graph_task_nba(ts, formula)
     words = SourceWords(ts, nba, relevant_mask(ts, f))

@@ -35,7 +35,7 @@ from scipy.sparse.csgraph import breadth_first_order, connected_components
 
 from mrodrake.logic.nba import NBA
 from mrodrake.planning.exact import immovable_objects
-from mrodrake.ts import TransitionSystem
+from mrodrake.ts import TransitionSystem, reachable
 
 #: Largest abstract product (abstract states × NBA states) a relaxation builds.
 PRODUCT_LIMIT = 200_000
@@ -94,13 +94,7 @@ def motion(ts: TransitionSystem, e: int, C: np.ndarray, relevant: int) -> Motion
     """The :class:`Motion` of entity e with connections C (only what its initial region reaches)."""
     K = ts.K
     k0 = ts.initial[e]
-    seen, todo = {k0}, [k0]
-    while todo:
-        u = todo.pop()
-        for v in np.flatnonzero(C[u]):
-            if int(v) not in seen:
-                seen.add(int(v))
-                todo.append(int(v))
+    seen = reachable(C, k0)
     index = {("in", k): k for k in range(K)}
     pairs = [(k, k2) for k in sorted(seen) for k2 in sorted(seen) if k != k2 and C[k, k2]]
     for p in pairs:
@@ -166,15 +160,7 @@ class Relaxations:
         self.conn = entity_connections(ts, self.immovable)
         self.reach = []
         for e in range(n_ent):
-            C = self.conn[e]
-            seen, todo = {ts.initial[e]}, [ts.initial[e]]
-            while todo:
-                u = todo.pop()
-                for v in np.flatnonzero(C[u]):
-                    if int(v) not in seen:
-                        seen.add(int(v))
-                        todo.append(int(v))
-            self.reach.append(sum(1 << k for k in seen))
+            self.reach.append(sum(1 << k for k in reachable(self.conn[e], ts.initial[e])))
         self.mentioned = [e for e in range(n_ent) if (self.relevant >> (e * K)) & ((1 << K) - 1)]
         self.names = ts.robot_names + ts.object_names
         self.cubes = [[(p, n, d) for g, d in row for p, n in g] for row in self.nba.edges]
