@@ -162,6 +162,32 @@ def local_path(start, goal, centers, radii, rim_center, rim_radius, clearance: f
     return np.array(path[::-1])
 
 
+def clear_goal(goal, centers, radii, rim_center, rim_radius: float, max_shift: float,
+               margin: float = 0.25 * PATH_CLEARANCE) -> np.ndarray:
+    """``goal``, or the point it is pushed to (radially out of every disk (centers, radii) it comes within
+    ``margin`` of, repeatedly) when that moves it at most ``max_shift`` and keeps it within ``rim_radius`` of
+    ``rim_center``: a planned goal that an entity ended a few centimetres away from its own planned point has
+    come to overlap.  Raises ValueError otherwise."""
+    g0 = np.asarray(goal, dtype=float).reshape(2)
+    c = np.asarray(centers, dtype=float).reshape(-1, 2)
+    rho = np.asarray(radii, dtype=float).reshape(-1)
+    g = g0.copy()
+    for _ in range(20):
+        d = np.linalg.norm(c - g, axis=1) if len(c) else np.zeros(0)
+        near = np.flatnonzero(d < rho + margin - 1e-9)
+        if not len(near):
+            break
+        n = near[np.argmin(d[near] - rho[near])]
+        u = (g - c[n]) / d[n] if d[n] > 1e-12 else (g - np.asarray(rim_center, dtype=float))
+        u = u / max(float(np.linalg.norm(u)), 1e-12)
+        g = c[n] + (rho[n] + margin) * u
+    else:
+        raise ValueError("local path: no clear goal near the planned one")
+    if np.linalg.norm(g - g0) > max_shift or np.linalg.norm(g - np.asarray(rim_center, dtype=float)) > rim_radius:
+        raise ValueError(f"local path: the goal ({g0[0]:.3f}, {g0[1]:.3f}) overlaps another entity")
+    return g
+
+
 def leg_barriers(leg_start, leg_end, centers, radii, rim_center, rim_radius, *, width_cap: float = WIDTH_CAP,
                  fraction: float = TAU_FRACTION) -> tuple[np.ndarray, float]:
     """Regions of influence (τ_1..τ_L, τ_0) for one leg (Prop. 1 per barrier, module docstring).

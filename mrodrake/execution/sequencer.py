@@ -31,7 +31,7 @@ import shapely
 
 from mrodrake.control.adaptive import AdaptiveGains
 from mrodrake.control.freespace import DEFAULT_MARGIN, Disk, entity_free_space
-from mrodrake.control.local import PATH_CLEARANCE, disk_obstacles, local_path, local_task
+from mrodrake.control.local import PATH_CLEARANCE, clear_goal, disk_obstacles, local_path, local_task
 from mrodrake.control.tasks import build_task
 from mrodrake.errors import UserError
 from mrodrake.execution.commands import PrimitiveRecord, SyncCommand, TaskCommand
@@ -418,6 +418,8 @@ class Sequencer:
         k = op.region
         c, R, centers, radii = self._local_world(X, entity, radius, k, team)
         try:
+            if op.kind in (OpKind.ROOM, OpKind.RELEASE):  # planned points: others end within GOAL_TOL of theirs
+                goal = clear_goal(goal, centers, radii, c, R, 2.0 * GOAL_TOL)
             legs = local_path(X[entity, :2], goal, centers, radii, c, R)
         except ValueError as exc:
             raise _Failure(f"{self._op_text(op)}: {exc}") from None

@@ -12,8 +12,10 @@ from scipy.integrate import solve_ivp
 
 from mrodrake.control.adaptive import AdaptiveGains
 from mrodrake.control.local import (
+    PATH_CLEARANCE,
     DiskWorldNavigationFunction,
     _segment_distances,
+    clear_goal,
     leg_barriers,
     local_path,
     local_task,
@@ -286,3 +288,32 @@ def test_docking_at_the_design_bound_settles():
     is anti-damping settles with α̂(0) = ᾱ = 5 (asserted by _local_property).  Where the paper's α̂(0) = 0 fails
     is shown on the point-world law (tests/systems/test_transitions.py, issue 16)."""
     _local_property(1, [2.5] * 4, [2.5] * 4, [0.5] * 4, -math.pi / 2)
+
+
+def test_clear_goal_pushes_a_planned_goal_out_of_a_neighbour_that_ended_off_plan():
+    """A room-move goal 1.485 m from a robot that ended its navigation off its planned point (two robots of
+    radius 0.75: 1.5 m apart at contact), as in a generated campaign mission: moved out radially to the margin,
+    4 cm; a goal already clear is returned unchanged; a shift beyond max_shift or out of the rim is an error."""
+    centers, radii = np.array([[197.0009, -128.9444], [202.0, -130.0]]), np.array([1.5, 0.95])
+    rim_c, rim_r = np.array([200.0, -130.0]), 3.25
+    goal = np.array([198.045, -130.0])
+    g = clear_goal(goal, centers, radii, rim_c, rim_r, 0.1)
+    assert np.linalg.norm(g - centers[0]) == pytest.approx(1.5 + 0.25 * PATH_CLEARANCE)
+    assert 0.03 < np.linalg.norm(g - goal) < 0.05
+    far = np.array([199.0, -131.5])
+    assert np.array_equal(clear_goal(far, centers, radii, rim_c, rim_r, 0.1), far)
+    with pytest.raises(ValueError, match="overlaps another entity"):
+        clear_goal(goal, centers, radii, rim_c, rim_r, 0.02)
+    with pytest.raises(ValueError, match="overlaps another entity"):
+        clear_goal(np.array([197.0009, -127.46]), centers, radii, rim_c, 2.0, 0.1)
+
+
+def test_clear_goal_in_a_mission_world():
+    """The disks of the generated campaign mission gen_n4_m1_k3_s2 at its step-3 room move (it stopped there with
+    "the goal overlaps another entity" before clear_goal): the goal leaves r3's disk and stays clear of the rest."""
+    centers = np.array([[202.3035088, -128.8886568], [197.0009091, -128.9444411], [202.873756, -130.8597914],
+                        [202.0226313, -130.0448704]])
+    radii = np.array([1.5, 1.5, 1.5, 1.08])
+    g = clear_goal(np.array([198.045, -130.0]), centers, radii, np.array([200.0, -130.0]), 3.25, 0.1)
+    assert np.linalg.norm(g - centers[1]) == pytest.approx(1.5 + 0.25 * PATH_CLEARANCE, abs=1e-9)
+    assert np.all(np.linalg.norm(centers - g, axis=1) - radii >= 0.25 * PATH_CLEARANCE - 1e-9)
