@@ -111,29 +111,9 @@ def test_planned_legs_are_clear_and_outside_every_barrier(disks, seed):
 
 
 def _closed_loop(tasks_for, start, mass, fr_scale, t_end, leg_tol=0.025, frequency=0.5):
-    """m ẍ + f = u with the local law, switching legs within ``leg_tol`` of a waypoint (as the supervisor)."""
-    y = np.concatenate([start, [0, 0], [0.5, 0.0]])
-    xs, legs, k, t = [], tasks_for, 0, 0.0
-    while True:
-        task = legs[k]
-
-        def rhs(_, yy, task=task):
-            ev = task.evaluate(yy[:2], yy[2:4], yy[4], yy[5])
-            acc = (ev.u - friction("paper", fr_scale, frequency, yy[:2], yy[2:4])) / mass
-            return np.concatenate([yy[2:4], acc, [ev.m_hat_dot, ev.alpha_hat_dot]])
-
-        def near(_, yy, task=task):
-            return np.linalg.norm(yy[:2] - task.goal) - leg_tol
-
-        near.terminal = k < len(legs) - 1
-        sol = solve_ivp(rhs, (t, t_end), y, method="LSODA", rtol=1e-8, atol=1e-10, max_step=0.2, events=near)
-        assert sol.success
-        xs.append(sol.y)
-        y, t = sol.y[:, -1], sol.t[-1]
-        if k == len(legs) - 1 or t >= t_end:
-            return np.hstack(xs), t
-        k += 1
-        y = np.concatenate([y[:4], [0.5, 0.0]])  # a new task resets the estimates
+    """m ẍ + f = u with the local law, switching legs within ``leg_tol`` of a waypoint (as the supervisor); a new
+    task resets the estimates to (0.5, 0)."""
+    return _closed_loop_bodies(tasks_for, start, [mass], [fr_scale], [frequency], [0.5, 0.0], t_end, leg_tol)
 
 
 @pytest.mark.parametrize("mass,fr_scale", [(1.0, 1.25), (3.0, 1.25), (0.5, 2.0), (3.0, 0.3)])
@@ -199,8 +179,9 @@ def test_team_velocity_gain_scales_with_its_bodies():
 
 # ---------------------------------------------------------------------------------------------- design range
 def _closed_loop_bodies(tasks, start, masses, scales, frequencies, bodies_est0, t_end, leg_tol=0.025):
-    """Like :func:`_closed_loop` for an entity of several bodies (a robot, or an object and its team at one point):
-    m = Σ m_b, f = Σ f_b (paper friction per body), estimates reset to ``bodies_est0`` on every leg."""
+    """m ẍ + f = u with the local law for an entity of several bodies (a robot, or an object and its team at one
+    point): m = Σ m_b, f = Σ f_b (paper friction per body), legs switched within ``leg_tol`` of a waypoint,
+    estimates reset to ``bodies_est0`` on every leg."""
 
     def fric(x, v):
         return sum(friction("paper", s, w, x, v) for s, w in zip(scales, frequencies))
