@@ -132,6 +132,11 @@ class _Placer:
     def __init__(self, ts: TransitionSystem, steps: Sequence[StepSpec], seed: int):
         self.ts, self.steps, self.seed = ts, list(steps), int(seed)
         self.deferred: set[tuple[int, int]] = set()  # (step, robot): grasps after the step's departures
+        self.departures: list[list[tuple[int, Transport]]] = [[] for _ in range(ts.K)]  # per source region
+        for n, spec in enumerate(self.steps):
+            for a in spec.actions:
+                if isinstance(a, Transport):
+                    self.departures[a.src].append((n, a))
         sc = ts.scenario
         self.N, self.M, self.K = ts.N, ts.M, ts.K
         self.spacing = sc.layout.spacing
@@ -607,12 +612,11 @@ class _Placer:
         region k while a robot of radius r docked at q (to object j) would be inside its covering disk: the
         team's start would lie outside its free space."""
         out = []
-        for n in range(step, int(min(until, len(self.steps)))):
-            for a in self.steps[n].actions:
-                if isinstance(a, Transport) and a.obj != j and a.src == k and w.where[self.N + a.obj] == k:
-                    need = self.ts.covering_radius(a.obj, a.team) + r + self.spacing
-                    if math.hypot(*(w.pos[self.N + a.obj] - np.asarray(q))) < need:
-                        out.append(n)
+        for n, a in self.departures[k]:
+            if step <= n < until and a.obj != j and w.where[self.N + a.obj] == k:
+                need = self.ts.covering_radius(a.obj, a.team) + r + self.spacing
+                if math.hypot(*(w.pos[self.N + a.obj] - np.asarray(q))) < need:
+                    out.append(n)
         return out
 
     def arrive(self, w: _World, spec: StepSpec, step: int, a) -> list[PlacedOp]:
