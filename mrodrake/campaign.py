@@ -447,6 +447,45 @@ def trajectory_metrics(scenario: Scenario, trajectory) -> dict:
     return out
 
 
+def primitive_records(scenario: Scenario, log) -> list[dict]:
+    """One record per executed primitive of a mission log: step, kind, entities, duration against the motion's
+    time bound, and for navigations and transports the final estimates m̂, α̂ of its controller against the
+    true mass and friction bound of the moving entity (a transport: object plus members, the bounds of
+    Assumption 1 adding up)."""
+    bodies = {b.name: b for b in list(scenario.robots) + list(scenario.objects)}
+    ev = log.events
+    if ev is None or not len(ev):
+        return []
+    sig = log.signals
+    out = []
+    for _, e in ev[ev["kind"].isin(["primitive", "room"])].iterrows():
+        names = str(e["entities"]).split()
+        kind = "room" if e["kind"] == "room" else str(e["action"]).split()[0]
+        t0, t1 = float(e["t_start"]), float(e["t_end"])
+        limit = _finite(e.get("time_limit"))
+        rec = {"step": int(e["step"]), "kind": kind, "action": str(e["action"]), "entities": " ".join(names),
+               "ok": bool(e["ok"]), "seconds": t1 - t0, "time_limit": limit,
+               "m_true": None, "m_hat": None, "alpha_true": None, "alpha_hat": None}
+        if kind in ("navigate", "transport") and names:
+            s = sig[(sig["entity"] == names[0]) & (sig["t"] >= t0) & (sig["t"] <= t1)]
+            if len(s):
+                last = s.iloc[-1]
+                rec.update(m_true=float(sum(bodies[n].mass for n in names)),
+                           alpha_true=float(sum(bodies[n].friction.alpha_bound for n in names)),
+                           m_hat=float(last["m_hat"]), alpha_hat=float(last["alpha_hat"]))
+        out.append(rec)
+    return out
+
+
+def _finite(value) -> float | None:
+    """A finite float, or None for empty / NaN cells."""
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        return None
+    return v if math.isfinite(v) else None
+
+
 # ------------------------------------------------------------------------------------------ one mission
 #: Row columns that measure time on the machine (they differ between runs and engines).
 TIMING_COLUMNS = ("plan_wall_seconds", "sim_wall_seconds", "wall_seconds", "cpu_seconds", "real_time_factor")
@@ -499,6 +538,7 @@ def _record_log(row: dict, task: MissionTask, scenario: Scenario, log, stopped: 
             kind = getattr(log, "failure_kind", None) or classify("mission", msg, DEFAULT_KINDS["log"])
             row.update(failure_kind=str(kind), failure_message=msg)
     row.update(trajectory_metrics(scenario, log.trajectory))
+    row["primitives"] = primitive_records(scenario, log)
     if task.run_dir is not None:
         from mrodrake.viz.outputs import write_mission
 
@@ -860,8 +900,10 @@ def run_campaign(spec_path: str | Path, out: str | Path | None = None, engine: s
     ordered = [rows[t.mission_id] for t in camp.tasks if t.mission_id in rows]
     df = pd.DataFrame(ordered, columns=list(base_row(camp.tasks[0]).keys()) if camp.tasks else None)
     write_results(df, out)
+    prims = primitives_table(ordered)
+    prims.to_csv(out / "primitives.csv", index=False, float_format="%.10g")
     meta.update(ran=ran, skipped=skipped, wall_seconds=wall, interrupted=interrupted)
-    summary = summarize(df, meta)
+    summary = summarize(df, meta, prims)
     (out / "summary.md").write_text(summary, encoding="utf-8")
     write_figures(df, out / "figures")
     (out / "campaign.json").write_text(json.dumps(meta, indent=1), encoding="utf-8")
@@ -872,6 +914,19 @@ def run_campaign(spec_path: str | Path, out: str | Path | None = None, engine: s
               "command again to resume)", file=sys.stderr)
         raise KeyboardInterrupt
     return result
+
+
+PRIMITIVE_COLUMNS = ("mission_id", "family", "step", "kind", "action", "entities", "ok", "seconds", "time_limit",
+                     "m_true", "m_hat", "alpha_true", "alpha_hat")
+
+
+def primitives_table(rows: list[dict]):
+    """primitives.csv: the primitive records of every finished mission, with its id and family."""
+    import pandas as pd
+
+    recs = [{"mission_id": r["mission_id"], "family": r["family"], **p}
+            for r in rows for p in r.get("primitives") or ()]
+    return pd.DataFrame(recs, columns=list(PRIMITIVE_COLUMNS))
 
 
 def write_results(df, out: Path) -> list[Path]:
@@ -896,9 +951,10 @@ def _num(x, fmt: str = ".3g") -> str:
     return "" if x is None or (isinstance(x, float) and not math.isfinite(x)) else format(float(x), fmt)
 
 
-def summarize(df, meta: dict) -> str:
+def summarize(df, meta: dict, prims=None) -> str:
     """The campaign summary (Markdown): totals, success per family and size, failures by kind with one
-    example each, clearance / gap / speed / wall-time distributions."""
+    example each, clearance / gap / speed / wall-time distributions; with ``prims`` (primitives.csv) the
+    per-primitive durations against their time bounds and the final estimates against the true values."""
     import pandas as pd
 
     n, total = len(df), meta["missions"]
@@ -954,7 +1010,42 @@ def summarize(df, meta: dict) -> str:
     parts += [f"- missions with NaN in the trajectory: {nan}; with a wall/obstacle contact (clearance < 0): {neg}; "
               f"with overlapping entity disks (gap < 0): {overlap}",
               "- figures: figures/success_by_size.png, figures/hist_wall.png, figures/hist_clearance.png", ""]
+    if prims is not None and len(prims):
+        parts += _primitive_sections(prims)
     return "\n".join(parts)
+
+
+def _primitive_sections(prims) -> list[str]:
+    """Summary sections of primitives.csv: durations by kind; final m̂/m and α̂/α by kind."""
+    import pandas as pd
+
+    rows = []
+    for kind, g in prims.groupby("kind", sort=True):
+        sec = pd.to_numeric(g["seconds"], errors="coerce")
+        lim = pd.to_numeric(g["time_limit"], errors="coerce")
+        frac = (sec / lim).dropna()
+        rows.append([kind, len(g), int(g["ok"].astype(bool).sum()), _num(sec.median(), ".1f"),
+                     _num(sec.quantile(0.95), ".1f"), _num(sec.max(), ".1f"),
+                     _num(frac.max(), ".3f") if len(frac) else "", int((frac > 1).sum())])
+    parts = ["## Primitives", "",
+             _md_table(["kind", "n", "ok", "median s", "95% s", "max s", "max s / bound", "over bound"], rows), ""]
+    est = prims.dropna(subset=["m_hat", "m_true", "alpha_hat", "alpha_true"])
+    if not len(est):
+        return parts
+    rows = []
+    for kind, g in est.groupby("kind", sort=True):
+        m = pd.to_numeric(g["m_hat"]) / pd.to_numeric(g["m_true"])
+        at = pd.to_numeric(g["alpha_true"])
+        a = (pd.to_numeric(g["alpha_hat"]) / at.where(at > 0)).dropna()
+        cover = int((pd.to_numeric(g["alpha_hat"]) >= at).sum())
+        rows.append([kind, len(g)] + [_num(m.quantile(q)) for q in (0.05, 0.5, 0.95)]
+                    + [_num(a.quantile(q)) if len(a) else "" for q in (0.05, 0.5, 0.95)] + [f"{cover}/{len(g)}"])
+    parts += ["## Final estimates against the true values (navigations and transports)", "",
+              _md_table(["kind", "n", "m̂/m 5%", "m̂/m median", "m̂/m 95%", "α̂/α 5%", "α̂/α median", "α̂/α 95%",
+                         "α̂ ≥ α"], rows), "",
+              "- m: true mass of the moving entity (a transport: object + members); α: its friction bound of "
+              "Assumption 1 (summed over the bodies); m̂, α̂: the controller's estimates at the primitive's end", ""]
+    return parts
 
 
 def write_figures(df, folder: Path) -> list[Path]:

@@ -220,6 +220,35 @@ def test_local_campaign_records_the_injected_failure_and_completes_the_rest(loca
         pd.testing.assert_frame_equal(pd.read_parquet(out / "results.parquet"), res.rows)
 
 
+def test_primitives_table_measures_every_primitive_against_truth(local_four):
+    spec, out, res = local_four
+    prims = pd.read_csv(out / "primitives.csv")
+    camp = load_campaign(spec)
+    for task, row in zip(camp.tasks, res.rows.itertuples()):
+        mine = prims[prims["mission_id"] == row.mission_id]
+        if not row.ok:
+            assert mine.empty  # the injected failure raised before simulating
+            continue
+        assert len(mine) > 0 and mine["ok"].all()
+        assert set(mine["kind"]) == {"navigate", "grasp", "transport", "release"}
+        assert (mine["seconds"] > 0).all() and (mine["seconds"] <= mine["time_limit"]).all()
+        sc = randomized_scenario(task.instance.scenario, task.params)
+        bodies = {b.name: b for b in [*sc.robots, *sc.objects]}
+        moving = mine[mine["kind"].isin(["navigate", "transport"])]
+        for p in moving.itertuples():
+            names = p.entities.split()
+            assert math.isclose(p.m_true, sum(bodies[n].mass for n in names), rel_tol=1e-9)
+            assert math.isclose(p.alpha_true, sum(bodies[n].friction.alpha_bound for n in names), rel_tol=1e-9)
+            # α̂ starts at the design bound n·ᾱ and never decreases (the adaptation rate is ≥ 0)
+            assert p.alpha_hat >= len(names) * sc.control.alpha_max * (1 - 1e-7)
+            assert p.m_hat > 0
+        assert mine[~mine["kind"].isin(["navigate", "transport"])][["m_hat", "alpha_hat"]].isna().all().all()
+    summary = (out / "summary.md").read_text()
+    assert "## Primitives" in summary and "## Final estimates against the true values" in summary
+    n_transport = int((prims["kind"] == "transport").sum())
+    assert f"| transport | {n_transport} | {n_transport} |" in summary
+
+
 def test_rerun_resumes_without_rerunning(local_four):
     spec, out, first = local_four
     journal, results = (out / "journal.jsonl").read_text(), (out / "results.csv").read_text()

@@ -308,7 +308,7 @@ class Sequencer:
     def _event(self, ed: _Edit, kind: str, t: float, spec: StepSpec | None, **row) -> None:
         base = {"kind": kind, "t_start": row.pop("t_start", t), "t_end": t, "step": spec.index if spec else 0,
                 "plan_step": spec.plan_step if spec else 0, "action": "", "entities": "", "from_region": "",
-                "to_region": "", "ok": True, "propositions": "", "nba_states": "", "detail": ""}
+                "to_region": "", "ok": True, "propositions": "", "nba_states": "", "detail": "", "time_limit": None}
         base.update(row)
         ed.events.append(base)
 
@@ -332,7 +332,8 @@ class Sequencer:
             ents, src, dst = [self.robots[act.robot], self.objects[act.obj]], op.region, op.region
         self._event(ed, "room" if op.kind is OpKind.ROOM else "primitive", t, a.step, t_start=a.t0,
                     action=self._op_text(op), entities=" ".join(ents), from_region=names[src], to_region=names[dst],
-                    ok=bool(ok), nba_states=" ".join(map(str, ed.monitor.states)), detail=detail)
+                    ok=bool(ok), nba_states=" ".join(map(str, ed.monitor.states)), detail=detail,
+                    time_limit=None if a.motion is None else float(a.motion.limit))
 
     # ------------------------------------------------------------------ plant commands
     def _sync(self, ed: _Edit, plant: str, x, v=(0.0, 0.0), frozen: bool = True, offsets=None) -> None:

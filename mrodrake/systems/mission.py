@@ -94,7 +94,7 @@ class MissionLog:
     ``signals``: t, controller, entity, ux, uy, m_hat, alpha_hat (active controllers; a transport has one
     row for the object (entity input u) and one per member (u_ℓ = cf_ℓ u));
     ``events``: kind (primitive / label / order), t_start, t_end, step, plan_step, action, entities,
-    from_region, to_region, ok, propositions, nba_states, detail;
+    from_region, to_region, ok, propositions, nba_states, detail, time_limit (a primitive's motion bound, s);
     ``grasps``: t_start, t_end, robot, object (docked intervals, for the replay).
     """
 
@@ -310,7 +310,7 @@ class Mission:
             traj = pd.DataFrame(columns=["t", "entity", "x", "y", "vx", "vy"])
         sig = pd.DataFrame(lg.signals, columns=["t", "controller", "entity", "ux", "uy", "m_hat", "alpha_hat"])
         ev_cols = ["kind", "t_start", "t_end", "step", "plan_step", "action", "entities", "from_region", "to_region",
-                   "ok", "propositions", "nba_states", "detail"]
+                   "ok", "propositions", "nba_states", "detail", "time_limit"]
         events = pd.DataFrame(list(st.events), columns=ev_cols)
         t_now = float(self.simulator.get_context().get_time())
         names = self.scenario.robot_names, self.scenario.object_names
