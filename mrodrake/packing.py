@@ -294,10 +294,10 @@ def _random_start(rng: np.random.Generator, r: np.ndarray, rho: float) -> np.nda
     return np.c_[rad * np.cos(th), rad * np.sin(th)]
 
 
-def _solutions(r: np.ndarray, fc: np.ndarray, fr: np.ndarray, gap: float, seed: int):
+def _solutions(r: np.ndarray, fc: np.ndarray, fr: np.ndarray, gap: float, seed: int, restarts: int = _RESTARTS):
     """Yield verified centres for radii ``r`` (descending, unit container) next to the fixed disks
     (fc, fr) with every gap involving a new disk >= gap + 1.5 SLACK: first the greedy placements,
-    then penalty-energy minima from seeded random starts (at most _RESTARTS of them)."""
+    then penalty-energy minima from seeded random starts (at most ``restarts`` of them)."""
     infl = (gap + _BUILD) / 2.0
     rads, frads, rho = r + infl, fr + infl, 1.0 - infl
     check = gap + (SLACK + _BUILD) / 2.0
@@ -310,7 +310,7 @@ def _solutions(r: np.ndarray, fc: np.ndarray, fr: np.ndarray, gap: float, seed: 
             partial = (c, k)
     rng = np.random.default_rng(seed)
     ro, fro, rhoo = rads + _OPT_EXTRA, frads + _OPT_EXTRA, rho - _OPT_EXTRA
-    for attempt in range(_RESTARTS):
+    for attempt in range(restarts):
         start = _random_start(rng, ro, rhoo)
         if attempt == 0 and partial is not None:
             start[: partial[1]] = partial[0][: partial[1]]
@@ -423,14 +423,8 @@ def _spread(c: np.ndarray, r: np.ndarray, fc: np.ndarray, fr: np.ndarray) -> np.
     return res.x[:-1].reshape(-1, 2)
 
 
-def place(region_radius: float, fixed_centres: np.ndarray, fixed_radii: Sequence[float],
-          new_radii: Sequence[float], seed: int = 0, margin: float = 0.0) -> np.ndarray | None:
-    """Centres (relative to the region centre, in the order of ``new_radii``) for new disks in a region
-    that already holds the fixed disks, which are not moved ("goal points given the entities already
-    there").  Every gap involving a new disk (to other new disks, to fixed disks, to the rim) is at
-    least ``margin + SLACK * region_radius``; the minimum gap is then enlarged by a few optimisation
-    steps (spread-out goals) when the result stays verified.  Gaps among fixed disks are not checked.
-    None if no placement was found.  Not cached."""
+def _place_inputs(region_radius, fixed_centres, fixed_radii, new_radii, margin):
+    """Checked (R, new radii, fixed centres, fixed radii, margin) of :func:`place` / :func:`can_place`."""
     R = _check_radius(region_radius, "region_radius")
     fr = _check_radii(fixed_radii, "fixed_radii")
     r = _check_radii(new_radii, "new_radii")
@@ -442,6 +436,37 @@ def place(region_radius: float, fixed_centres: np.ndarray, fixed_radii: Sequence
     g = float(margin)
     if not math.isfinite(g) or g < 0.0:
         raise ValueError(f"margin must be a finite non-negative number, got {margin!r}")
+    return R, r, fc, fr, g
+
+
+def can_place(region_radius: float, fixed_centres: np.ndarray, fixed_radii: Sequence[float],
+              new_radii: Sequence[float], seed: int = 0, margin: float = 0.0, restarts: int = _RESTARTS) -> bool:
+    """True iff the search of :func:`place` finds a verified placement of ``new_radii`` next to the fixed
+    disks (the same gaps), trying the greedy placements and then at most ``restarts`` seeded relaxations;
+    the first verified placement answers (no spreading, so much cheaper than ``place`` when only existence
+    matters)."""
+    R, r, fc, fr, g = _place_inputs(region_radius, fixed_centres, fixed_radii, new_radii, margin)
+    if len(r) == 0:
+        return True
+    order = np.argsort(-r, kind="stable")
+    rs, fcs, frs, gs = r[order] / R, fc / R, fr / R, g / R
+    if gs / 2.0 >= 1.0 or not _necessary((rs + gs / 2.0) / (1.0 - gs / 2.0)):
+        return False
+    for c in _solutions(rs, fcs, frs, gs, int(seed), int(restarts)):
+        if _gaps_ok(R, c * R, r[order], fc, fr, g + SLACK * R):
+            return True
+    return False
+
+
+def place(region_radius: float, fixed_centres: np.ndarray, fixed_radii: Sequence[float],
+          new_radii: Sequence[float], seed: int = 0, margin: float = 0.0) -> np.ndarray | None:
+    """Centres (relative to the region centre, in the order of ``new_radii``) for new disks in a region
+    that already holds the fixed disks, which are not moved ("goal points given the entities already
+    there").  Every gap involving a new disk (to other new disks, to fixed disks, to the rim) is at
+    least ``margin + SLACK * region_radius``; the minimum gap is then enlarged by a few optimisation
+    steps (spread-out goals) when the result stays verified.  Gaps among fixed disks are not checked.
+    None if no placement was found.  Not cached."""
+    R, r, fc, fr, g = _place_inputs(region_radius, fixed_centres, fixed_radii, new_radii, margin)
     if len(r) == 0:
         return np.zeros((0, 2))
     order = np.argsort(-r, kind="stable")

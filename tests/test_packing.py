@@ -11,7 +11,7 @@ from hypothesis import strategies as st
 from scipy.optimize import minimize
 
 from mrodrake import packing
-from mrodrake.packing import SLACK, fits, pack, place, verify_packing
+from mrodrake.packing import SLACK, can_place, fits, pack, place, verify_packing
 
 # Proven optimal container ratios R/r for n = 2..10 equal circles (as given in issue 2).
 EQUAL_OPT = dict(zip(range(2, 11), [2.0, 2.1547, 2.4142, 2.7013, 3.0, 3.0, 3.3047, 3.6131, 3.8130]))
@@ -172,6 +172,34 @@ def test_place_is_sound_on_random_inputs(fixed, new, margin, seed):
         return
     assert c.shape == (len(new), 2)
     assert min_gap(4.0, c, new, fc, fr) >= margin + SAFE * 4.0
+
+
+@settings(max_examples=60, derandomize=True, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(
+    fixed=st.lists(st.tuples(st.floats(-4.0, 4.0), st.floats(-4.0, 4.0), st.floats(0.1, 1.5)), max_size=5),
+    new=st.lists(st.floats(0.1, 1.5), min_size=1, max_size=4),
+    margin=st.sampled_from([0.0, 0.3]),
+    seed=st.integers(0, 9),
+)
+def test_can_place_answers_what_place_finds(fixed, new, margin, seed):
+    # can_place runs place's search without spreading: every placement place returns is one it finds, and
+    # fewer relaxations can only find less
+    fc = np.array([(x, y) for x, y, _ in fixed]).reshape(-1, 2)
+    fr = [r for _, _, r in fixed]
+    found = can_place(4.0, fc, fr, new, seed=seed, margin=margin)
+    if place(4.0, fc, fr, new, seed=seed, margin=margin) is not None:
+        assert found
+    if can_place(4.0, fc, fr, new, seed=seed, margin=margin, restarts=0):
+        assert found
+
+
+def test_can_place_on_the_two_lens_region():
+    t_star = 8.2125 / 11.7  # see test_place_spreads_to_the_max_min_gap
+    fc, fr = np.array([[2.1, 0.0], [-2.1, 0.0]]), [1.85, 1.85]
+    assert can_place(4.0, fc, fr, [0.75, 0.75], margin=t_star - 0.01)
+    assert not can_place(4.0, fc, fr, [0.75, 0.75], margin=t_star + 0.01)
+    assert not can_place(4.0, np.zeros((1, 2)), [3.9], [0.2])
+    assert can_place(4.0, fc, fr, [])
 
 
 # ---------------------------------------------------------------------------------------- unequal radii

@@ -42,7 +42,7 @@ from mrodrake.control.local import local_path
 from mrodrake.errors import UserError
 from mrodrake.execution.steps import StepSpec
 from mrodrake.geometry import CONTROL_MARGIN, grasp_layout, polygon
-from mrodrake.packing import place
+from mrodrake.packing import can_place, place
 from mrodrake.ts import Grasp, Navigate, Release, TransitionSystem, Transport
 
 #: Spacing (m) of the boundary points that keep spots off walls, obstacles and other regions.
@@ -145,6 +145,7 @@ class _Placer:
         self.radii = np.array(ts.robot_radius + ts.object_radius, dtype=float)
         self._samples: dict[int, np.ndarray] = {}
         self._next: dict[tuple[int, int], tuple[int, ...] | None] = {}
+        self._fits: dict[tuple, bool] = {}  # answers of the ``future`` check of spot (a pure function)
         self.variant = 0
         self.rng = np.random.default_rng(self.seed)
         #: the (object, team) pairs with a team plant: only they can carry their object inside a region
@@ -278,6 +279,17 @@ class _Placer:
         rings = np.concatenate([np.arange(top, 0.0, -0.25), [0.0]])
         if self.variant:
             rings = rings[self.rng.permutation(len(rings))]
+        # with ``future``: first every ring with the greedy P_s check alone, then with its relaxations
+        for restarts in ((0, None) if future else (None,)):
+            p = self._spot_pass(k, r, c, rings, fc, fr, keep_clear, future, near, restarts)
+            if p is not None:
+                return p
+        return None
+
+    def _spot_pass(self, k, r, c, rings, fc, fr, keep_clear, future, near, restarts) -> np.ndarray | None:
+        """One pass of :meth:`spot` over ``rings``; ``restarts``: relaxations of the ``future`` check (None:
+        as many as :func:`place` tries)."""
+        sp, R = self.spacing, float(self.R[k])
         for rho in rings:
             n = 1 if rho == 0.0 else int(min(180, max(12, math.ceil(2.0 * math.pi * rho / 0.1))))
             ang = np.arange(n) * (2.0 * math.pi / n)
@@ -300,10 +312,19 @@ class _Placer:
                 idx = idx[np.argsort(-clear[idx], kind="stable")]
             for i in idx[: 2 if future else 1]:
                 p = pts[i]
-                if not future or place(R, np.vstack([fc, p]) - c, list(fr) + [r], list(future), seed=self.seed,
-                                       margin=sp) is not None:
+                if not future:
+                    return p
+                if self._leaves_room(R, np.vstack([fc, p]) - c, [*fr, r], list(future), restarts):
                     return p
         return None
+
+    def _leaves_room(self, R: float, fc: np.ndarray, fr: list, future: list, restarts: int | None) -> bool:
+        """can_place of the ``future`` radii next to the fixed disks (fc, fr), remembered per exact input."""
+        key = (R, fc.tobytes(), tuple(map(float, fr)), tuple(map(float, future)), restarts)
+        if key not in self._fits:
+            kw = {} if restarts is None else {"restarts": restarts}
+            self._fits[key] = can_place(R, fc, fr, future, seed=self.seed, margin=self.spacing, **kw)
+        return self._fits[key]
 
     def path_ok(self, w: _World, e: int, k: int, goal, ignore: set[int]) -> bool:
         """Straight-leg path inside region k for robot e from its position to ``goal`` around every other
