@@ -50,15 +50,26 @@ inject: {{1: raise}}
 """
 
 #: 3 tiny missions with a 2 s time limit: a crash, a hang (killed), a real mission (stopped by the monitor).
-ISOLATION = f"""
+def isolation_spec() -> tuple[str, int]:
+    """The crash / hang / soft-time-limit spec and its time limit: 3x the wall time this machine takes now
+    to plan and build the tiny mission (at least 2 s), so that the soft limit falls inside the simulation of
+    the slowed mission 2 (442 s simulated at most 5x real time: 88 s) however loaded the machine is."""
+    from mrodrake.planning.plan import plan_scenario
+    from mrodrake.systems.mission import Mission
+
+    sc = load_scenario(TINY)
+    t0 = time.perf_counter()
+    Mission(sc, plan_scenario(sc, "stylus", seed=2), seed=0)
+    limit = max(2, math.ceil(3.0 * (time.perf_counter() - t0)))
+    return f"""
 name: isolation
 scenarios:
   - file: {TINY}
-time_limit: 2
+time_limit: {limit}
 seeds:
   plan: {{start: 0, count: 3}}
-inject: {{0: crash, 1: hang}}
-"""
+inject: {{0: crash, 1: hang, 2: slow}}
+""", limit
 
 
 def write(tmp_path, text, name="spec.yaml"):
@@ -272,9 +283,10 @@ def test_a_changed_mission_is_rerun_and_the_rest_resumed(local_four, tmp_path):
 
 def test_isolation_crash_hang_and_time_limit_local(tmp_path):
     out = tmp_path / "out"
-    res = run_campaign(write(tmp_path, ISOLATION), out=out, engine="local", workers=2, keep_runs=True,
+    spec, limit = isolation_spec()
+    res = run_campaign(write(tmp_path, spec), out=out, engine="local", workers=2, keep_runs=True,
                        progress=False)
-    check_isolation(res.rows)
+    check_isolation(res.rows, limit)
     assert "SIGABRT" in res.rows.iloc[0]["failure_message"]
     soft = out / "runs" / "tiny-p2-l0-d0"
     assert json.loads((soft / "row.json").read_text())["failure_kind"] == "timeout"
@@ -282,13 +294,13 @@ def test_isolation_crash_hang_and_time_limit_local(tmp_path):
     assert not (out / "runs" / "tiny-p0-l0-d0" / "row.json").exists()
 
 
-def check_isolation(df):
+def check_isolation(df, limit):
     kinds = list(df["failure_kind"])
     assert kinds == ["worker_crash", "timeout", "timeout"], df[["mission_id", "failure_kind", "failure_message"]]
     assert df.iloc[1]["failure_message"].startswith("killed after")
-    assert df.iloc[1]["wall_seconds"] < 2 + 5 + 10
+    assert df.iloc[1]["wall_seconds"] < limit + 5 + 10  # the kill comes at limit + grace (5 s)
     soft = df.iloc[2]
-    assert soft["failure_message"].startswith("time limit 2 s reached after")
+    assert soft["failure_message"].startswith(f"time limit {limit} s reached after")
     assert soft["steps_done"] < soft["steps_total"] and soft["sim_seconds"] > 0
 
 
@@ -309,8 +321,9 @@ def test_ray_rows_agree_with_the_local_engine(local_four, ray_session, tmp_path)
 
 
 def test_isolation_crash_hang_and_time_limit_ray(ray_session, tmp_path):
-    res = run_campaign(write(tmp_path, ISOLATION), out=tmp_path / "out", engine="ray", progress=False)
-    check_isolation(res.rows)
+    spec, limit = isolation_spec()
+    res = run_campaign(write(tmp_path, spec), out=tmp_path / "out", engine="ray", progress=False)
+    check_isolation(res.rows, limit)
     assert "WorkerCrashedError" in res.rows.iloc[0]["failure_message"]
 
 
