@@ -467,7 +467,11 @@ class Sequencer:
     def _arrived(self, X: np.ndarray, m: Motion) -> bool:
         """At rest on the last leg and near the goal (local motions within dock_tol; navigations and
         transports within goal_tol, or, when no local path finished them, inside the target region with half
-        the layout spacing to spare)."""
+        the layout spacing to spare).  A navigation or transport has also arrived only with its whole ball
+        (radius ``m.radius``: a team's from its members' actual offsets) inside the target region, so that
+        the executed state is the planned one: a goal within goal_tol of the region's rim is not enough (a
+        team goal keeps half the spacing to the rim for the nominal covering radius, and docked members are
+        up to dock_tol off their slots; the goal is still inside since dock_tol < half the spacing)."""
         x, v = X[m.entity, :2], X[m.entity, 2:]
         if math.hypot(*v) > self.rest_speed:
             return False
@@ -476,6 +480,8 @@ class Sequencer:
         to_goal = math.hypot(*(x - np.asarray(m.goal)))
         if m.kind in (OpKind.NAVIGATE, OpKind.TRANSPORT):
             depth = self.region_radii[m.dst] - math.hypot(*(x - self.centers[m.dst])) - m.radius
+            if depth < 0.0:
+                return False
             return to_goal <= self.goal_tol or (m.legs is None and depth >= 0.5 * self.scenario.layout.spacing)
         return to_goal <= self.dock_tol
 
