@@ -3,12 +3,15 @@ navigation task of an entity's free space (paper Sec. III-A) and static P_s layo
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping, Sequence
 
 import numpy as np
+import shapely
 
-from mrodrake.control.adaptive import AdaptiveGains, NavigationTask
+from mrodrake.control.adaptive import AdaptiveGains, NavigationTask, circle_radius
 from mrodrake.control.freespace import Disk, EntityFreeSpace, region_index
+from mrodrake.control.local import local_path
 from mrodrake.control.pointworld import PointWorldMap
 from mrodrake.errors import UserError
 from mrodrake.geometry import grasp_layout
@@ -23,15 +26,66 @@ from mrodrake.scenario import Scenario
 MAP_OPTIONS = {"curvature_fraction": 0.1, "hole_refinement": 1.0}
 
 
+def build_map(free: EntityFreeSpace, **map_options) -> PointWorldMap:
+    """The point-world map H of ``free.polygon`` (options: :data:`MAP_OPTIONS` updated by ``map_options``)."""
+    return PointWorldMap.build(free.polygon, **{**MAP_OPTIONS, **map_options})
+
+
+def inside_circle(pw_map: PointWorldMap, points) -> np.ndarray:
+    """Whether each of ``points`` (n, 2) maps strictly inside the circle barrier ρ₀ of ``pw_map``."""
+    chi = np.asarray(pw_map(np.asarray(points, dtype=float).reshape(-1, 2)), dtype=float).reshape(-1, 2)
+    return np.linalg.norm(chi, axis=1) < circle_radius(pw_map)
+
+
 def build_task(scenario: Scenario, free: EntityFreeSpace, n_members: int = 1, cf: Sequence[float] | None = None,
-               label: str = "", **map_options) -> NavigationTask:
-    """The map H of ``free.polygon`` (options: :data:`MAP_OPTIONS` updated by ``map_options``) and φ for
+               label: str = "", pw_map: PointWorldMap | None = None, **map_options) -> NavigationTask:
+    """The map H of ``free.polygon`` (``pw_map``, or built by :func:`build_map` with ``map_options``) and φ for
     ``free.goal`` with the scenario's gains (caps r̄, τ; the start is kept out of every barrier region,
     see :meth:`NavigationTask.build`)."""
     c = scenario.control
-    pw = PointWorldMap.build(free.polygon, **{**MAP_OPTIONS, **map_options})
+    pw = build_map(free, **map_options) if pw_map is None else pw_map
     return NavigationTask.build(pw, free.goal, AdaptiveGains.from_scenario(c), k1=c.k1, k2=c.k2, r_bar_cap=c.r_bar,
                                 tau_cap=c.tau, cf=n_members if cf is None else cf, start=free.start, label=label)
+
+
+#: Distances (m) from the start searched for a departure point (:func:`departure_point`).
+DEPARTURE_STEPS = np.arange(1, 13) * 0.05
+_DEPARTURE_ANGLES = 32
+
+
+def departure_point(pw_map: PointWorldMap, free: EntityFreeSpace, centers, radii, rim_center, rim_radius: float,
+                    tol: float) -> np.ndarray | None:
+    """A point near ``free.start`` from which the point-world law can start when the start itself maps
+    outside the circle barrier ρ₀ = 1 − κ δ_max (a start a spacing away from another entity whose grown disk
+    merges with the walls lies on the outer boundary's band, where the discrete map falls short of the unit
+    circle): the nearest point (rings every 0.05 m up to 0.6 m) that is reachable from the start by a
+    straight-leg local path inside the disk (rim_center, rim_radius) around the grown disks (centers, radii)
+    and that maps inside ρ₀ together with every point ``tol`` around it (the local law ends within ``tol``
+    of its goal); None if there is none."""
+    s = np.asarray(free.start, dtype=float)
+    ang = np.arange(_DEPARTURE_ANGLES) * (2.0 * math.pi / _DEPARTURE_ANGLES)
+    ring = np.column_stack([np.cos(ang), np.sin(ang)])
+    around = np.vstack([[0.0, 0.0], tol * ring[::4]])
+    c = np.asarray(centers, dtype=float).reshape(-1, 2)
+    rho = np.asarray(radii, dtype=float).reshape(-1)
+    rc = np.asarray(rim_center, dtype=float).reshape(2)
+    for d in DEPARTURE_STEPS:
+        pts = s + d * ring
+        ok = np.linalg.norm(pts - rc, axis=1) <= rim_radius - tol
+        if len(c):
+            ok &= np.all(np.linalg.norm(pts[:, None, :] - c[None, :, :], axis=-1) - rho[None, :] >= tol, axis=1)
+        ok &= shapely.contains_xy(free.polygon, pts[:, 0], pts[:, 1])
+        if not ok.any():
+            continue
+        cand = pts[ok]
+        good = inside_circle(pw_map, (cand[:, None, :] + around[None, :, :]).reshape(-1, 2))
+        for p in cand[good.reshape(len(cand), len(around)).all(axis=1)]:
+            try:
+                local_path(s, p, c, rho, rc, rim_radius)
+            except ValueError:
+                continue
+            return p
+    return None
 
 
 def entity_layout(scenario: Scenario, regions: Mapping[str, int | str] | None = None,

@@ -17,8 +17,9 @@ entity ends:
 
 Every spot is a P_s placement (:func:`mrodrake.packing.place`) in the region with the layout spacing to the
 other entities and the rim; ungrasped objects with a later transport occupy their future team's covering
-disk (reserved); an arrival also leaves room for the largest set of entities the plan brings into that
-region while it stays (foresight, dropped in the order of the smallest first when it does not fit); spots
+disk (reserved; the members that start beside it stand on their slots inside it); an arrival also leaves
+room for the largest set of entities the plan brings into that region while it stays (foresight, dropped in
+the order of the smallest first when it does not fit); spots
 keep ``radius + CONTROL_MARGIN`` to walls, obstacles and other regions (sampled boundary points are fixed
 disks), so that the point-world free space of a departure or an arrival contains them.  Every local motion
 (back-off, docking, room move) is checked for a straight-leg path inside its region
@@ -123,6 +124,7 @@ class _World:
         self.grasp = [int(g) for g in state[N + M:]]
         self.rotation: dict[int, float] = {}
         self.placed = [-1] * (N + M)  # executed step whose arrival put each entity where it is (-1: start)
+        self.preset: dict[int, float] = {}  # layout rotations of members on their slots from the start
 
     def team_of(self, j: int) -> tuple[int, ...]:
         return tuple(i for i in range(self.ts.N) if self.grasp[i] == j)
@@ -153,6 +155,8 @@ class _Placer:
                           if isinstance(a, Transport)}
         #: learned (centre, distance) to keep from, per (entity, executed step of its arrival; -1: start)
         self.hints: dict[tuple[int, int], list[tuple[np.ndarray, float]]] = {}
+        #: team layout rotation of an object whose members stand on their slots from the start (first grasp)
+        self.preset: dict[int, float] = {}
 
     def restart(self, variant: int) -> None:
         """Another attempt at the whole run: variant 0 places every spot as far out as it goes, with the
@@ -160,6 +164,7 @@ class _Placer:
         self.variant = int(variant)
         self.rng = np.random.default_rng([self.seed, self.variant])
         self.hints = {}
+        self.preset = {}
 
     # ------------------------------------------------------------------------------------ geometry
     def samples(self, k: int) -> np.ndarray:
@@ -524,6 +529,8 @@ class _Placer:
                 d = [math.hypot(*(q - self.centers[k])) for q in layout_slots(ts, j, team, xo, rot)]
                 return (max(d[m] for m in later) if later else 0.0, max(d))
             angles.sort(key=outer)
+            if j in w.preset:  # members standing on their slots from the start keep them
+                angles.insert(0, w.preset.pop(j))
         members = set(team) | set(docked)
         ops: list[PlacedOp] = []
         acts = {a.robot: a for a in spec.actions if isinstance(a, Grasp)}
@@ -758,23 +765,71 @@ class _Placer:
         return all(math.hypot(*(spot - c)) >= d for c, d in keep_clear)
 
     # ------------------------------------------------------------------------------------ the run
+    def seated(self, state: tuple, k: int) -> dict[int, int]:
+        """Robots of region k at the start that take a slot of an object's reserved team disk there:
+        robot -> object, for every free robot in the next transport team of an ungrasped object in region k
+        (the object whose grasp by it comes first).  The disk covers its members' slots, so a member standing
+        on its slot takes no room beyond the disk (P_s counts a formed team as its covering disk alone)."""
+        N, M = self.N, self.M
+        first: dict[tuple[int, int], int] = {}
+        for n, spec in enumerate(self.steps):
+            for a in spec.actions:
+                if isinstance(a, Grasp):
+                    first.setdefault((a.robot, a.obj), n)
+        grasped = {int(g) for g in state[N + M:] if g >= 0}
+        out = {}
+        for i in range(N):
+            if state[i] != k or state[N + M + i] >= 0:
+                continue
+            objs = [j for j in range(M) if state[N + j] == k and j not in grasped
+                    and i in (self.next_team(j, 0) or ())]
+            if objs:
+                out[i] = min(objs, key=lambda j: (first.get((i, j), math.inf), j))
+        return out
+
+    def seat(self, pos: np.ndarray, k: int, j: int, seated: dict[int, int]) -> None:
+        """Put the seated robots of object j on the slots of its next team's layout around its position,
+        rotated so that the slots of the members that come later face the region's centre (most room to
+        dock), and keep the rotation for its first grasp."""
+        team = self.next_team(j, 0)
+        xo = pos[self.N + j]
+        here = [i for i in team if seated.get(i) == j]
+        if not here:
+            return
+        later = [team.index(i) for i in team if i not in here]
+
+        def outer(rot):
+            d = [math.hypot(*(q - self.centers[k])) for q in layout_slots(self.ts, j, team, xo, rot)]
+            return (max(d[m] for m in later) if later else 0.0, max(d))
+
+        rot = min(np.linspace(0.0, 2.0 * math.pi, _ANGLES, endpoint=False), key=outer)
+        slots = layout_slots(self.ts, j, team, xo, rot)
+        for i in here:
+            pos[i] = slots[team.index(i)]
+        self.preset[j] = float(rot)
+
     def initial(self, state: tuple) -> np.ndarray:
-        """P_s layout of the initial state, every ungrasped object with its future team's disk, leaving
-        room (foresight) for what the plan brings into the region while its objects are still there."""
+        """P_s layout of the initial state, every ungrasped object with its future team's disk (the members
+        in the region on their slots, :meth:`seated`), leaving room (foresight) for what the plan brings into
+        the region while its objects are still there.  (The reserved disk is where the object's transport
+        starts, so its free space needs it clear of walls, obstacles and other regions.)"""
         N, M = self.N, self.M
         pos = np.zeros((N + M, 2))
+        self.preset = {}
         w = _World(self.ts, state, pos)
         for k in range(self.K):
-            ents = [e for e in range(N + M) if state[e] == k]
-            if not ents:
+            everyone = [e for e in range(N + M) if state[e] == k]
+            if not everyone:
                 continue
+            seated = self.seated(state, k)
+            ents = [e for e in everyone if e not in seated]
             radii = []
             for e in ents:
                 nxt = self.next_team(e - N, 0) if e >= N else None
                 radii.append(self.ts.covering_radius(e - N, nxt) if nxt else float(self.radii[e]))
             future = max((self.future_units(w, -1, k, e) for e in ents if e >= N), default=[],
                          key=lambda u: sum(x * x for x in u))
-            if any((e, -1) in self.hints for e in ents):  # learned: one entity after the other, hints kept
+            if any((e, -1) in self.hints for e in everyone):  # learned: one entity after the other, hints kept
                 order = sorted(range(len(ents)), key=lambda n: -radii[n])
                 cs, rs = [], []
                 for n in order:
@@ -785,6 +840,8 @@ class _Placer:
                     pos[ents[n]] = p
                     cs.append(p)
                     rs.append(radii[n])
+                for j in sorted(set(seated.values())):
+                    self.seat(pos, k, j, seated)
                 continue
             sol = None
             for n in range(len(future), -1, -1):
@@ -797,13 +854,16 @@ class _Placer:
                     break
             if sol is None:
                 raise PlacementError(f"initial state: region '{self.ts.region_names[k]}': the entities "
-                                     f"{', '.join((self.ts.robot_names + self.ts.object_names)[e] for e in ents)} "
+                                     f"{', '.join((self.ts.robot_names + self.ts.object_names)[e] for e in everyone)} "
                                      "with the team disks of their objects do not fit")
             pos[ents] = sol
+            for j in sorted(set(seated.values())):
+                self.seat(pos, k, j, seated)
         return pos
 
     def run(self, initial: np.ndarray) -> Placement:
         w = _World(self.ts, self.steps[0].src if self.steps else self.ts.initial, initial)
+        w.preset = dict(self.preset)
         self.deferred = set()
         out = []
         for step, spec in enumerate(self.steps):

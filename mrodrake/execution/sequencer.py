@@ -32,7 +32,7 @@ import shapely
 from mrodrake.control.adaptive import AdaptiveGains
 from mrodrake.control.freespace import DEFAULT_MARGIN, Disk, entity_free_space
 from mrodrake.control.local import PATH_CLEARANCE, clear_goal, disk_obstacles, local_path, local_task
-from mrodrake.control.tasks import build_task
+from mrodrake.control.tasks import build_map, build_task, departure_point, inside_circle
 from mrodrake.errors import UserError
 from mrodrake.execution.commands import PrimitiveRecord, SyncCommand, TaskCommand
 from mrodrake.execution.monitor import WordMonitor, entity_regions, label_of
@@ -61,6 +61,7 @@ class Phase(Enum):
 
     START = "start"
     ENGAGE = "engage"
+    DEPART = "depart"
     DISENGAGE = "disengage"
     MOVING = "moving"
 
@@ -140,6 +141,14 @@ class ExecState:
 
 class _Failure(Exception):
     """A primitive cannot go on (recorded; ends the mission with ok=False)."""
+
+
+class _Depart(Exception):
+    """The start of a point-world motion maps outside the circle barrier: it leaves from ``point`` instead."""
+
+    def __init__(self, point: np.ndarray):
+        super().__init__()
+        self.point = point
 
 
 @dataclass
@@ -384,21 +393,51 @@ class Sequencer:
         return ed.episode
 
     def _start_point_world(self, ed: _Edit, t: float, X: np.ndarray, op: PlacedOp, *, entity: int, team: tuple,
-                           radius: float, src: int, dst: int, plant: str, controller: str, offsets=()) -> Motion:
+                           radius: float, src: int, dst: int, plant: str, controller: str, offsets=(),
+                           depart: bool = True) -> Motion:
+        """The point-world motion of ``op``; raises :class:`_Depart` (if ``depart``) when its start maps
+        outside the circle barrier and a departure point inside the source region is found."""
         movers = {entity} | set(team)
         others = self._disks(X, movers)
         start, goal = X[entity, :2].copy(), np.asarray(op.goal, dtype=float)
+        name = self.entities[entity]
         try:
             free = entity_free_space(self.scenario, radius, start, goal, src, dst, others)
-            task = build_task(self.scenario, free, max(1, len(team)), label=f"{self.entities[entity]} {op.kind.value}")
+            pw = build_map(free)
+            if depart and not inside_circle(pw, start)[0]:
+                c, R, centers, radii = self._local_world(X, entity, radius, src, team)
+                point = departure_point(pw, free, centers, radii, c, R, self.dock_tol)
+                if point is not None:
+                    raise _Depart(point)
+            task = build_task(self.scenario, free, max(1, len(team)), label=f"{name} {op.kind.value}", pw_map=pw)
         except (UserError, ValueError) as exc:
-            raise _Failure(f"{op.kind.value} of {self.entities[entity]}: {str(exc).splitlines()[0]}") from None
+            raise _Failure(f"{op.kind.value} of {name}: {str(exc).splitlines()[0]}") from None
         ep = self._new_episode(ed)
         ed.tasks[controller] = TaskCommand(task, ep)
         self._unfreeze(ed, plant)
         return Motion(op.kind, entity, team, controller, plant, src, dst, radius, tuple(start), tuple(goal), t,
                       self._limit(float(np.hypot(*(goal - start)))), ep, task, free, tuple(others),
                       tuple(map(tuple, np.asarray(offsets, dtype=float).reshape(-1, 2))))
+
+    def _leave(self, ed: _Edit, t: float, X: np.ndarray, a: Active, **kw) -> bool:
+        """Start the point-world motion of ``a`` (phase MOVING), or first a local move inside the source
+        region to its departure point (phase DEPART, then the point-world motion from where it ended)."""
+        if a.phase is Phase.DEPART:
+            if not self._wait(ed, t, X, a):
+                return False
+            m = self._start_point_world(ed, t, X, a.op, depart=False, **kw)
+            ed.active = replace(a, phase=Phase.MOVING, motion=m)
+            return False
+        try:
+            m = self._start_point_world(ed, t, X, a.op, **kw)
+        except _Depart as d:
+            m = self._start_local(ed, t, X, a.op, entity=kw["entity"], team=kw["team"], radius=kw["radius"],
+                                  plant=kw["plant"], controller=kw["controller"], goal=d.point,
+                                  offsets=kw.get("offsets", ()), region=kw["src"], kind=OpKind.ROOM)
+            ed.active = replace(a, phase=Phase.DEPART, motion=m)
+            return False
+        ed.active = replace(a, phase=Phase.MOVING, motion=m)
+        return False
 
     def _leg_task(self, X: np.ndarray, m: Motion):
         c, R, centers, radii = self._local_world(X, m.entity, m.radius, m.dst, m.team, m.extra)
@@ -414,12 +453,15 @@ class Sequencer:
             raise _Failure(f"{m.kind.value} of {self.entities[m.entity]}: {exc}") from None
 
     def _start_local(self, ed: _Edit, t: float, X: np.ndarray, op: PlacedOp, *, entity: int, team: tuple,
-                     radius: float, plant: str, controller: str, goal: np.ndarray, offsets=()) -> Motion:
-        """A local motion of ``entity`` (a robot, or a team's object) inside the region of ``op`` to ``goal``."""
-        k = op.region
+                     radius: float, plant: str, controller: str, goal: np.ndarray, offsets=(),
+                     region: int | None = None, kind: OpKind | None = None) -> Motion:
+        """A local motion of ``entity`` (a robot, or a team's object) inside the region of ``op`` (or
+        ``region``) to ``goal``, of the kind of ``op`` (or ``kind``)."""
+        k = op.region if region is None else region
+        kind = op.kind if kind is None else kind
         c, R, centers, radii = self._local_world(X, entity, radius, k, team)
         try:
-            if op.kind in (OpKind.ROOM, OpKind.RELEASE):  # planned points: others end within GOAL_TOL of theirs
+            if kind in (OpKind.ROOM, OpKind.RELEASE):  # planned points: others end within GOAL_TOL of theirs
                 goal = clear_goal(goal, centers, radii, c, R, 2.0 * GOAL_TOL)
             legs = local_path(X[entity, :2], goal, centers, radii, c, R)
         except ValueError as exc:
@@ -427,7 +469,7 @@ class Sequencer:
         start = X[entity, :2].copy()
         length = float(np.sum(np.linalg.norm(np.diff(np.vstack([start, legs]), axis=0), axis=1)))
         ep = self._new_episode(ed)
-        m = Motion(op.kind, entity, team, controller, plant, k, k, radius, tuple(start), tuple(map(float, goal)), t,
+        m = Motion(kind, entity, team, controller, plant, k, k, radius, tuple(start), tuple(map(float, goal)), t,
                    self._limit(length), ep, None, None, tuple(self._disks(X, {entity, *team})),
                    tuple(map(tuple, np.asarray(offsets, dtype=float).reshape(-1, 2))),
                    tuple(map(tuple, legs)), 0, True)
@@ -468,7 +510,11 @@ class Sequencer:
     def _arrived(self, X: np.ndarray, m: Motion) -> bool:
         """At rest on the last leg and near the goal (local motions within dock_tol; navigations and
         transports within goal_tol, or, when no local path finished them, inside the target region with half
-        the layout spacing to spare)."""
+        the layout spacing to spare).  A navigation or transport has also arrived only with its whole ball
+        (radius ``m.radius``: a team's from its members' actual offsets) inside the target region, so that
+        the executed state is the planned one: a goal within goal_tol of the region's rim is not enough (a
+        team goal keeps half the spacing to the rim for the nominal covering radius, and docked members are
+        up to dock_tol off their slots; the goal is still inside since dock_tol < half the spacing)."""
         x, v = X[m.entity, :2], X[m.entity, 2:]
         if math.hypot(*v) > self.rest_speed:
             return False
@@ -477,6 +523,8 @@ class Sequencer:
         to_goal = math.hypot(*(x - np.asarray(m.goal)))
         if m.kind in (OpKind.NAVIGATE, OpKind.TRANSPORT):
             depth = self.region_radii[m.dst] - math.hypot(*(x - self.centers[m.dst])) - m.radius
+            if depth < 0.0:
+                return False
             return to_goal <= self.goal_tol or (m.legs is None and depth >= 0.5 * self.scenario.layout.spacing)
         return to_goal <= self.dock_tol
 
@@ -593,32 +641,28 @@ class Sequencer:
         return False
 
     def _navigate(self, ed: _Edit, t: float, X: np.ndarray, a: Active) -> bool:
-        op, act = a.op, a.op.action
-        if a.phase is Phase.START:
+        act = a.op.action
+        if a.phase in (Phase.START, Phase.DEPART):
             r = act.robot
-            m = self._start_point_world(ed, t, X, op, entity=r, team=(), radius=float(self.radii[r]), src=act.src,
-                                        dst=act.dst, plant=self.robots[r], controller=f"nav_{self.robots[r]}")
-            ed.active = replace(a, phase=Phase.MOVING, motion=m)
-            return False
+            return self._leave(ed, t, X, a, entity=r, team=(), radius=float(self.radii[r]), src=act.src,
+                               dst=act.dst, plant=self.robots[r], controller=f"nav_{self.robots[r]}")
         return self._wait(ed, t, X, a)
 
     def _transport(self, ed: _Edit, t: float, X: np.ndarray, a: Active) -> bool:
-        op, act = a.op, a.op.action
+        act = a.op.action
         j, team = act.obj, tuple(act.team)
         if a.phase is Phase.START:
             if not self._engage(ed, X, j, team):
                 ed.active = replace(a, phase=Phase.ENGAGE)
                 return False
             a = ed.active = replace(a, phase=Phase.ENGAGE)
-        if a.phase is Phase.ENGAGE:
+        if a.phase in (Phase.ENGAGE, Phase.DEPART):
             self._route(ed, j, team)
             name = self.team_name(j, team)
             offsets = np.asarray(ed.syncs[name].offsets, dtype=float)
-            m = self._start_point_world(ed, t, X, op, entity=self.N + j, team=team,
-                                        radius=self._team_radius(team, offsets, j), src=act.src, dst=act.dst,
-                                        plant=name, controller=name + "_ctrl", offsets=offsets)
-            ed.active = replace(a, phase=Phase.MOVING, motion=m)
-            return False
+            return self._leave(ed, t, X, a, entity=self.N + j, team=team,
+                               radius=self._team_radius(team, offsets, j), src=act.src, dst=act.dst,
+                               plant=name, controller=name + "_ctrl", offsets=offsets)
         return self._wait(ed, t, X, a)
 
 

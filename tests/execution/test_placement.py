@@ -143,3 +143,48 @@ def test_grasp_and_release_actions_come_with_their_points(case1):
         for op in sp.ops:
             if isinstance(op.action, (Grasp, Release, Transport)):
                 assert op.region == sp.step.dst[ts.N + op.action.obj]
+
+
+def _lab_ts(robots: list[tuple[str, str]], objects: list[tuple[str, float, str]]) -> TransitionSystem:
+    """The lab map with robots (name, region; radius 0.5 m, power 4) and objects (name, radius, region)."""
+    data = yaml.safe_load((ROOT / "scenarios" / "maps" / "lab.yaml").read_text())
+    data["robots"] = [{"name": n, "mass": 1.0, "radius": 0.5, "power": 4, "initial_region": k} for n, k in robots]
+    data["objects"] = [{"name": n, "mass": 0.25, "radius": r, "required_power": 4, "initial_region": k}
+                       for n, r, k in objects]
+    data["task"] = {"formula": "F o1_p5"}
+    return TransitionSystem(scenario_from_dict(data))
+
+
+def _steps(ts: TransitionSystem, run: list[tuple]) -> list[StepSpec]:
+    for a, b in zip(run, run[1:]):
+        assert ts.check_transition(a, b) is None
+    return [StepSpec(n + 1, n + 1, 0, a, 0, b, 0, ts.actions(a, b)) for n, (a, b) in enumerate(zip(run, run[1:]))]
+
+
+@pytest.mark.parametrize("leaves_first", [False, True])
+def test_team_members_start_on_their_slots_in_a_region_the_team_fills(leaves_first):
+    """Lab p3 (radius 1.5 m) holds r1, r2 and o1 (radius 0.2 m) at the start; r3 joins and the three carry
+    o1 to p5.  The team disk (covering radius 0.2 + 0.1 + 2·0.5 = 1.3 m) takes all of p3 but a 0.2 m rim, so
+    reserving it *and* r1's and r2's own disks beside it is impossible (the campaign's "initial state: region
+    'p3': ... do not fit"), while P_s of the formed team (the disk alone) fits: r1 and r2 start on their slots
+    of that layout, and the first grasp keeps its rotation.  With ``leaves_first`` r2 visits p1 and comes
+    back before the grasp (it departs from its slot)."""
+    ts = _lab_ts([("r1", "p3"), ("r2", "p3"), ("r3", "p5")], [("o1", 0.2, "p3")])
+    p1, p3, p5 = (ts.region_names.index(k) for k in ("p1", "p3", "p5"))
+    s0 = ts.initial
+    run = [s0]
+    if leaves_first:
+        run += [ts.make_state([p3, p1, p5], [p3], [-1] * 3), s0]
+    run += [ts.make_state([p3, p3, p3], [p3], [-1] * 3), ts.make_state([p3, p3, p3], [p3], [0, 0, 0]),
+            ts.make_state([p5, p5, p5], [p5], [0, 0, 0])]
+    steps = _steps(ts, run)
+    pl = place_run(ts, steps)
+    pos = np.asarray(pl.initial)
+    check_configuration(ts, s0, pos)
+    grasp = next(op for sp in pl.steps for op in sp.ops if op.kind is OpKind.GRASP)
+    slots = layout_slots(ts, 0, grasp.team, pos[ts.N], grasp.rotation)
+    assert np.allclose(pos[0], slots[grasp.team.index(0)], atol=1e-9)  # r1 docks where it stands
+    if not leaves_first:
+        assert np.allclose(pos[1], slots[grasp.team.index(1)], atol=1e-9)
+    for sp in pl.steps:
+        check_configuration(ts, sp.step.dst, np.asarray(sp.positions))

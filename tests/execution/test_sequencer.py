@@ -4,6 +4,7 @@ teams, keep the monitored run consistent and end the mission done."""
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -95,3 +96,32 @@ def test_time_limit_ends_a_stuck_primitive(tiny):
     for k in range(40):  # the plants never move
         st = seq.tick(st, 0.5 * k, X)
     assert st.status is Status.FAILED and "time limit 5 s exceeded" in st.message
+
+
+def test_an_arrival_needs_the_whole_ball_inside_the_target_region(tiny):
+    """An entity at rest within goal_tol of a goal near the rim of its target region, but protruding from
+    the region, has not arrived (the executed state would not be the planned one: the campaign's
+    state_mismatch of gen_n4_m2_k4_s1, a team member 6 mm outside); at the goal itself it has."""
+    sc, plan, words, placement = tiny
+    seq = Sequencer(sc, plan.ts, words, placement, couplings_of(plan))
+    st = seq.initial_state()
+    X = np.zeros((len(seq.entities), 4))
+    X[:, :2] = np.asarray(placement.initial)
+    t = 0.0
+    for _ in range(2000):
+        st = seq.tick(st, t, X)
+        if st.active is not None and st.active.op.kind is OpKind.NAVIGATE and st.active.motion is not None:
+            break
+        X = _kinematic(seq, st, X)
+        t += 0.5
+    m = st.active.motion
+    c, R = np.asarray(sc.regions[m.dst].center, dtype=float), float(sc.regions[m.dst].radius)
+    u = np.asarray(m.goal) - c
+    u = u / np.linalg.norm(u) if np.linalg.norm(u) > 1e-9 else np.array([1.0, 0.0])
+    m = replace(m, legs=None, goal=tuple(c + (R - m.radius - 0.02) * u))  # a goal 2 cm inside the rim
+    out = np.zeros((len(seq.entities), 4))
+    out[m.entity, :2] = c + (R - m.radius + 0.02) * u  # 4 cm from it (< goal_tol), 2 cm outside the region
+    assert np.linalg.norm(out[m.entity, :2] - np.asarray(m.goal)) < seq.goal_tol
+    assert not seq._arrived(out, m)
+    out[m.entity, :2] = m.goal
+    assert seq._arrived(out, m)
