@@ -28,7 +28,9 @@ The product is never built.  The algorithm, as implemented here:
    with distances back to ``q_a`` (at least one edge); on the last NBA edge the goal also asks for
    ``s_a``'s regions and grasps, and a node ``(s, q)`` closes the cycle when ``q_a ∈ δ(q, L(s))`` and
    ``s → s_a`` is a TS transition.
-4. The cheapest prefix + suffix found so far is the plan (anytime).
+4. The cheapest prefix + suffix found so far is the plan (anytime).  On small object systems
+   (:meth:`~mrodrake.planning.legs.LassoImprover.applies`) every new best lasso is also re-planned exactly along
+   its own NBA-state sequence (:mod:`~mrodrake.planning.legs`); the cheaper of the two is the plan.
 
 Scheduling: until an accepting prefix node exists every iteration grows the prefix tree; afterwards one
 iteration in three does, and the others grow up to ``max_active_suffix`` suffix trees round-robin,
