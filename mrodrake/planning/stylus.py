@@ -28,7 +28,9 @@ The product is never built.  The algorithm, as implemented here:
    with distances back to ``q_a`` (at least one edge); on the last NBA edge the goal also asks for
    ``s_a``'s regions and grasps, and a node ``(s, q)`` closes the cycle when ``q_a ∈ δ(q, L(s))`` and
    ``s → s_a`` is a TS transition.
-4. The cheapest prefix + suffix found so far is the plan (anytime).
+4. The cheapest prefix + suffix found so far is the plan (anytime).  On small object systems
+   (:meth:`~mrodrake.planning.legs.LassoImprover.applies`) every new best lasso is also re-planned exactly along
+   its own NBA-state sequence (:mod:`~mrodrake.planning.legs`); the cheaper of the two is the plan.
 
 Scheduling: until an accepting prefix node exists every iteration grows the prefix tree; afterwards one
 iteration in three does, and the others grow up to ``max_active_suffix`` suffix trees round-robin,
@@ -57,6 +59,7 @@ from mrodrake.errors import NoPlanFound, UserError
 from mrodrake.logic.nba import NBA
 from mrodrake.planning.exact import blocked_note
 from mrodrake.planning.graph_stylus import GraphStrategy
+from mrodrake.planning.legs import LassoImprover
 from mrodrake.planning.product import (
     CubeGoal,
     accepting_on_cycle,
@@ -584,7 +587,7 @@ class Stylus:
 
     def __init__(self, ts: TransitionSystem, nba: NBA, relevant: int, seed: int | None = None,
                  p_rand: float | None = None, p_new: float | None = None, max_active_suffix: int = 4,
-                 suffix_budget: int = 1000):
+                 suffix_budget: int = 1000, replan: bool = True):
         self.ts = ts
         self.strategy = strategy_for(ts, relevant)
         self.nba = self.strategy.prune(nba)
@@ -623,6 +626,7 @@ class Stylus:
         self._new_accepting: list[int] = []
         self._reach: dict[int, list[int]] = {}
         self.prefix_tree: _Tree | None = None
+        self.improver = LassoImprover(ts, self.words, self.nba) if replan and LassoImprover.applies(ts) else None
 
     def closing_cubes(self, pos: int, neg: int, f: int) -> list[tuple[int, int]]:
         """Feasible conjunctions of the cube (pos, neg) of an edge into accepting state f with the guard
@@ -685,6 +689,8 @@ class Stylus:
         base_budget = self.suffix_budget
         active: list[int] = []
         best = (INF, -1, -1)  # total, accepting prefix node, closing suffix node
+        replanned = None  # (total, prefix, suffix, prefix cost, suffix cost) of the best re-planned lasso
+        replans, replan_seconds = 0, 0.0
         history = []
         first_seconds = None
         it = rr = 0
@@ -717,9 +723,10 @@ class Stylus:
             grow_suffix = bool(candidates) and it % 3 != 0
             if grow_suffix:
                 # a few active suffix trees, lowest prefix cost first (idle-closable roots before others)
-                active = [a for a in active if not exhausted(a) and pre.C[a] < best[0]]
+                top = min(best[0], replanned[0]) if replanned else best[0]
+                active = [a for a in active if not exhausted(a) and pre.C[a] < top]
                 if len(active) < self.max_active:
-                    pool = [a for a in candidates if a not in active and pre.C[a] < best[0] and not exhausted(a)]
+                    pool = [a for a in candidates if a not in active and pre.C[a] < top and not exhausted(a)]
                     if not pool and not active and best[1] < 0:
                         for a in candidates:  # everything tried: double the budgets (completeness)
                             budget[a] = 2 * budget.setdefault(a, base_budget)
@@ -747,9 +754,21 @@ class Stylus:
                 elapsed = time.perf_counter() - t0
                 if first_seconds is None:
                     first_seconds = elapsed
-                history.append((elapsed, it, best[0]))
+                if not replanned or best[0] < replanned[0] - 1e-9:
+                    history.append((elapsed, it, best[0]))
                 if stop_at_first:
                     break
+                if self.improver is not None:
+                    _, a, v = best
+                    t1 = time.perf_counter()
+                    found = self.improver.improve(pre.path(a)[:-1], suffix[a].path(v),
+                                                  None if time_limit is None else t0 + time_limit)
+                    replans += 1
+                    replan_seconds += time.perf_counter() - t1
+                    top = min(best[0], replanned[0]) if replanned else best[0]
+                    if found is not None and found[2] + found[3] < top - 1e-9:
+                        replanned = (found[2] + found[3], *found)
+                        history.append((time.perf_counter() - t0, it, replanned[0]))
             if progress is not None and (now - last_report > 0.1 or it == iterations):
                 last_report = now
                 progress({"iteration": it, "iterations": iterations, "seconds": now,
@@ -759,11 +778,15 @@ class Stylus:
                  "prefix_nodes": pre.num_nodes, "prefix_ts_states": len(pre.states),
                  "accepting_prefix_nodes": len(candidates), "suffix_trees": len(suffix),
                  "suffix_nodes": sum(t.num_nodes for t in suffix.values()),
-                 "sampler": dict(self.sampler.stats)}
+                 "sampler": dict(self.sampler.stats), "replans": replans, "replan_seconds": replan_seconds}
         if best[1] < 0:
             raise NoPlanFound(f"no plan found within {it} iterations and {elapsed:.1f} s; satisfiability unknown "
                               "(STyLuS* is probabilistically complete: raise --iterations or --time-limit)"
                               + self.strategy.no_plan_note())
+        if replanned and replanned[0] < best[0]:
+            stats["replanned"] = True
+            _, prefix_nodes, suffix_nodes, pc, sc = replanned
+            return StylusResult(prefix_nodes, suffix_nodes, pc, sc, stats, history)
         _, a, v = best
         prefix_nodes = pre.path(a)[:-1]
         tree = suffix[a]
