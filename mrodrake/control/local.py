@@ -46,6 +46,9 @@ PATH_CLEARANCE = 0.1
 #: Largest barrier annulus width (m).
 WIDTH_CAP = 0.5
 _NODES_PER_DISK = 16
+#: Rounding allowance (m) of the clearance tests of :func:`local_path`: a chord between consecutive corners of a
+#: ring is tangent to the ring's grown circle, at exactly ρ + need from the disk's centre.
+_ROUND = 1e-9
 
 
 class IdentityMap:
@@ -115,8 +118,9 @@ def local_path(start, goal, centers, radii, rim_center, rim_radius, clearance: f
     the goal if they are closer than that).  Candidate corners sit on two rings around each disk: n =
     ``nodes_per_disk`` corners at radius (ρ + clearance)/cos(π/n), and 2n at (ρ + need)/cos(π/2n) for gaps
     (between disks, or a disk and the rim) too narrow for the first; consecutive corners of a ring are joined by
-    chords tangent to its grown circle.  Corners lie within ``need`` of the rim, and legs stay in the rim disk by
-    convexity.  Raises ValueError without a path.
+    chords tangent to its grown circle (so those chords keep exactly ``need``: the tests allow rounding,
+    :data:`_ROUND`).  Corners lie within ``need`` of the rim, and legs stay in the rim disk by convexity.  Raises
+    ValueError without a path.
     """
     s = np.asarray(start, dtype=float).reshape(2)
     g = np.asarray(goal, dtype=float).reshape(2)
@@ -141,13 +145,14 @@ def local_path(start, goal, centers, radii, rim_center, rim_radius, clearance: f
         ring = np.column_stack([np.cos(ang), np.sin(ang)]) / math.cos(math.pi / n)
         corners.append((c[:, None, :] + (rho + offset)[:, None, None] * ring[None, :, :]).reshape(-1, 2))
     corners = np.vstack(corners)
-    ok = np.linalg.norm(corners - rc, axis=1) <= rim_radius - need
-    ok &= np.all(np.linalg.norm(corners[:, None, :] - c[None, :, :], axis=-1) - rho[None, :] >= need, axis=1)
+    ok = np.linalg.norm(corners - rc, axis=1) <= rim_radius - need + _ROUND
+    ok &= np.all(np.linalg.norm(corners[:, None, :] - c[None, :, :], axis=-1) - rho[None, :] >= need - _ROUND,
+                 axis=1)
     nodes = np.vstack([s, g, corners[ok]])
     n = len(nodes)
     i, j = np.triu_indices(n, 1)
     dist = _segment_distances(nodes[i], nodes[j], c)
-    free = np.all(dist - rho[None, :] >= need, axis=1)
+    free = np.all(dist - rho[None, :] >= need - _ROUND, axis=1)
     W = np.zeros((n, n))
     lengths = np.linalg.norm(nodes[j] - nodes[i], axis=1)
     W[i[free], j[free]] = np.maximum(lengths[free], 1e-12)

@@ -298,3 +298,22 @@ def test_clear_goal_in_a_mission_world():
     g = clear_goal(np.array([198.045, -130.0]), centers, radii, np.array([200.0, -130.0]), 3.25, 0.1)
     assert np.linalg.norm(g - centers[1]) == pytest.approx(1.5 + 0.25 * PATH_CLEARANCE, abs=1e-9)
     assert np.all(np.linalg.norm(centers - g, axis=1) - radii >= 0.25 * PATH_CLEARANCE - 1e-9)
+
+
+def test_docking_through_a_gap_only_the_tight_ring_passes():
+    """Case II plan seed 1 (issue-16 randomization), step 45: r4 docks at o3's third slot, the only way round o1
+    (0.107 m to the rim, 0.052 m to the docked r3) passes on the tight ring, whose chords keep exactly the required
+    0.05 m; one of them came out 1.7e-14 m short and the mission stopped with "no collision-free path".  The path
+    exists and keeps half the path clearance up to rounding."""
+    centers = np.array([[85.317932, -280.851145], [86.939359, -279.972207], [88.211745, -277.817326],
+                        [88.535440, -282.101470], [85.865595, -279.957842]])  # r2, r3 (docked), o1, o2, o3
+    radii = np.array([1.5, 1.5, 0.95, 0.95, 0.95])  # grown by r4's 0.75 m
+    rim_c, rim_r = np.array([88.0, -280.0]), 3.25
+    start = np.array([88.463309, -283.152186])
+    slot = centers[4] + 1.05 * np.array([math.cos(2 * math.pi / 3), math.sin(2 * math.pi / 3)])
+    path = local_path(start, slot, centers, radii, rim_c, rim_r)
+    pts = np.vstack([start, path])
+    clear = _segment_distances(pts[:-1], pts[1:], centers) - radii[None, :]
+    assert clear.min() >= 0.5 * PATH_CLEARANCE - 1e-9
+    assert np.all(np.linalg.norm(pts - rim_c, axis=1) <= rim_r + 1e-9)
+    np.testing.assert_allclose(path[-1], slot)
