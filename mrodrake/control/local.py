@@ -167,6 +167,42 @@ def local_path(start, goal, centers, radii, rim_center, rim_radius, clearance: f
     return np.array(path[::-1])
 
 
+def exit_path(start, centers, radii, rim_center, rim_radius: float, clearance: float, toward=None,
+              step: float = 0.1, angles: int = 36, tries: int = 24) -> np.ndarray:
+    """Straight legs (:func:`local_path`) from ``start`` to the nearest point (by path length; ties: nearer to
+    ``toward``) that keeps ``clearance`` from every disk (centers, radii) and lies in the rim disk: the exit leg of
+    a motion that starts closer than that to other entities.  Candidates lie on rings around the start every
+    ``step``; the ``tries`` nearest clear ones are routed.  Raises ValueError without one."""
+    s = np.asarray(start, dtype=float).reshape(2)
+    c = np.asarray(centers, dtype=float).reshape(-1, 2)
+    rho = np.asarray(radii, dtype=float).reshape(-1)
+    rc = np.asarray(rim_center, dtype=float).reshape(2)
+    ang = np.arange(angles) * (2.0 * math.pi / angles)
+    dirs = np.column_stack([np.cos(ang), np.sin(ang)])
+    rings = np.arange(1, int(math.ceil(2.0 * rim_radius / step)) + 1) * step
+    pts = (s + rings[:, None, None] * dirs[None, :, :]).reshape(-1, 2)
+    ok = np.linalg.norm(pts - rc, axis=1) <= rim_radius - 0.5 * PATH_CLEARANCE
+    if len(c):
+        ok &= np.all(np.linalg.norm(pts[:, None, :] - c[None, :, :], axis=-1) - rho[None, :] >= clearance, axis=1)
+    pts = pts[ok]
+    if not len(pts):
+        raise ValueError(f"exit path: no point in the region keeps {clearance:g} m from the other entities")
+    hint = np.asarray(toward, dtype=float).reshape(2) if toward is not None else s
+    order = np.lexsort((np.linalg.norm(pts - hint, axis=1), np.round(np.linalg.norm(pts - s, axis=1), 9)))
+    best, best_len = None, math.inf
+    for p in pts[order[:tries]]:
+        try:
+            legs = local_path(s, p, c, rho, rc, rim_radius)
+        except ValueError:
+            continue
+        length = float(np.sum(np.linalg.norm(np.diff(np.vstack([s, legs]), axis=0), axis=1)))
+        if length < best_len - 1e-9:
+            best, best_len = legs, length
+    if best is None:
+        raise ValueError(f"exit path: no straight-leg path to a point {clearance:g} m clear of the other entities")
+    return best
+
+
 def clear_goal(goal, centers, radii, rim_center, rim_radius: float, max_shift: float,
                margin: float = 0.25 * PATH_CLEARANCE) -> np.ndarray:
     """``goal``, or the point it is pushed to (radially out of every disk (centers, radii) it comes within

@@ -12,8 +12,10 @@ Each primitive is a small state machine (:class:`Phase`) over an :class:`Active`
 (disengage the team plant, back off), grasp (dock), navigation or transport (engage the team plant, go).  Its
 end point comes from the plan-wide placement (:mod:`mrodrake.execution.placement`).  Motions use the paper's
 adaptive law on the point-world map of the entity's free space, and the identity-map local law for docking,
-backing off, room moves and the last part of every navigation or transport inside the *approach disk* of the
-target region (:mod:`mrodrake.control.local`); the estimates carry over within one primitive (one episode).
+backing off, room moves, the last part of every navigation or transport inside the *approach disk* of the
+target region and, from a start nearer than :data:`EXIT_CLEARANCE` to another entity, its first part (exit legs
+inside the source region's approach disk) (:mod:`mrodrake.control.local`); the estimates carry over within one
+primitive (one episode).
 
 Parking brake: an entity that is not moving has zero dynamics; at rest (speed below ``rest_speed``) its
 velocity is reset to zero (the paper's friction can be negative, so an uncontrolled entity would drift).
@@ -31,7 +33,7 @@ import shapely
 
 from mrodrake.control.adaptive import AdaptiveGains
 from mrodrake.control.freespace import DEFAULT_MARGIN, Disk, entity_free_space
-from mrodrake.control.local import PATH_CLEARANCE, clear_goal, disk_obstacles, local_path, local_task
+from mrodrake.control.local import PATH_CLEARANCE, clear_goal, disk_obstacles, exit_path, local_path, local_task
 from mrodrake.control.tasks import build_task
 from mrodrake.errors import UserError
 from mrodrake.execution.commands import PrimitiveRecord, SyncCommand, TaskCommand
@@ -54,6 +56,13 @@ LEG_TOL = 0.25 * PATH_CLEARANCE
 APPROACH = 10.0
 #: Depth (m) of the entity's ball inside the approach disk at which the local law takes over.
 SETTLE_DEPTH = 0.05
+#: Clearance (m) to every other entity at which a navigation or transport starts the point-world law; from a
+#: start nearer to them it first leaves on exit legs of the local law.  Entities packed closer than their
+#: grown radii merge into one hole of the free space, and a start in a pocket of it maps next to that hole's
+#: point b_ℓ: its barrier, kept off the start (Prop. 1), then acts only within ~1 cm of the pocket's wall
+#: (case II seed 0, step 52: τ = 2.6e-10, 0.12 m gaps, u up to 2e4 N, integrator failure).  The same margin
+#: as to walls, obstacles and other regions (DEFAULT_MARGIN).
+EXIT_CLEARANCE = DEFAULT_MARGIN
 
 
 class Phase(Enum):
@@ -75,7 +84,8 @@ class Status(Enum):
 class Motion:
     """One controller driving one plant: the moving entity (a robot, or the object of a team), its team,
     regions, covering radius, start and goal; ``legs`` are the straight legs of the local law (None while on
-    the point-world law), ``leg`` the current one."""
+    the point-world law), ``leg`` the current one; ``exiting``: the legs are the exit legs in the source
+    region's approach disk before the point-world law starts."""
 
     kind: OpKind
     entity: int
@@ -98,6 +108,7 @@ class Motion:
     leg: int = 0
     settle_tried: bool = False
     extra: float = 0.0
+    exiting: bool = False
 
 
 @dataclass(frozen=True)
@@ -384,23 +395,47 @@ class Sequencer:
 
     def _start_point_world(self, ed: _Edit, t: float, X: np.ndarray, op: PlacedOp, *, entity: int, team: tuple,
                            radius: float, src: int, dst: int, plant: str, controller: str, offsets=()) -> Motion:
+        start, goal = X[entity, :2].copy(), np.asarray(op.goal, dtype=float)
+        offsets = tuple(map(tuple, np.asarray(offsets, dtype=float).reshape(-1, 2)))
+        limit = self._limit(float(np.hypot(*(goal - start))))
+        m = Motion(op.kind, entity, team, controller, plant, src, dst, radius, tuple(start), tuple(goal), t, limit,
+                   self._new_episode(ed), None, offsets=offsets)
+        self._unfreeze(ed, plant)
+        return self._exit(ed, X, m) or self._point_world(ed, X, m)
+
+    def _exit(self, ed: _Edit, X: np.ndarray, m: Motion) -> Motion | None:
+        """Exit legs of the local law in the source region's approach disk to the nearest point EXIT_CLEARANCE
+        clear of every other entity, when the start is nearer than that to one (None: not needed, or no path;
+        the point-world law then starts where the entity is)."""
+        c, R, centers, radii = self._local_world(X, m.entity, m.radius, m.src, m.team, self.approach[m.src])
+        x = X[m.entity, :2]
+        if not len(centers) or np.min(np.linalg.norm(centers - x, axis=1) - radii) >= EXIT_CLEARANCE:
+            return None
+        try:
+            legs = exit_path(x, centers, radii, c, R, EXIT_CLEARANCE, toward=np.asarray(m.goal))
+        except ValueError:
+            return None
+        m = replace(m, legs=tuple(map(tuple, legs)), leg=0, extra=float(self.approach[m.src]), exiting=True)
+        ed.tasks[m.controller] = TaskCommand(self._leg_task(X, m), m.episode)
+        return m
+
+    def _point_world(self, ed: _Edit, X: np.ndarray, m: Motion) -> Motion:
+        """The point-world law from where the entity is (same episode: the estimates carry over)."""
+        entity, radius, team = m.entity, m.radius, m.team
         movers = {entity} | set(team)
         others = self._disks(X, movers)
-        start, goal = X[entity, :2].copy(), np.asarray(op.goal, dtype=float)
+        start, goal, src, dst = X[entity, :2].copy(), np.asarray(m.goal, dtype=float), m.src, m.dst
         try:
             free = entity_free_space(self.scenario, radius, start, goal, src, dst, others)
-            task = build_task(self.scenario, free, max(1, len(team)), label=f"{self.entities[entity]} {op.kind.value}")
+            task = build_task(self.scenario, free, max(1, len(team)), label=f"{self.entities[entity]} {m.kind.value}")
         except (UserError, ValueError) as exc:
-            raise _Failure(f"{op.kind.value} of {self.entities[entity]}: {str(exc).splitlines()[0]}") from None
-        ep = self._new_episode(ed)
-        ed.tasks[controller] = TaskCommand(task, ep)
-        self._unfreeze(ed, plant)
-        return Motion(op.kind, entity, team, controller, plant, src, dst, radius, tuple(start), tuple(goal), t,
-                      self._limit(float(np.hypot(*(goal - start)))), ep, task, free, tuple(others),
-                      tuple(map(tuple, np.asarray(offsets, dtype=float).reshape(-1, 2))))
+            raise _Failure(f"{m.kind.value} of {self.entities[entity]}: {str(exc).splitlines()[0]}") from None
+        ed.tasks[m.controller] = TaskCommand(task, m.episode)
+        return replace(m, task=task, free=free, others=tuple(others), legs=None, leg=0, extra=0.0, exiting=False)
 
     def _leg_task(self, X: np.ndarray, m: Motion):
-        c, R, centers, radii = self._local_world(X, m.entity, m.radius, m.dst, m.team, m.extra)
+        c, R, centers, radii = self._local_world(X, m.entity, m.radius, m.src if m.exiting else m.dst, m.team,
+                                                 m.extra)
         ctrl = self.scenario.control
         # a team of n robots and its object has n + 1 bodies whose friction bounds add up (α_A = Σ α):
         # k_v_local per body keeps the velocity loop damped (tests/control/test_local.py)
@@ -455,9 +490,13 @@ class Sequencer:
         return m
 
     def _next_leg(self, ed: _Edit, X: np.ndarray, m: Motion) -> Motion:
-        if m.legs is None or m.leg >= len(m.legs) - 1:
+        if m.legs is None:
             return m
         if math.hypot(*(X[m.entity, :2] - np.asarray(m.legs[m.leg]))) > LEG_TOL:
+            return m
+        if m.exiting and m.leg >= len(m.legs) - 1:
+            return self._point_world(ed, X, m)
+        if m.leg >= len(m.legs) - 1:
             return m
         m = replace(m, leg=m.leg + 1)
         task = self._leg_task(X, m)
@@ -471,7 +510,7 @@ class Sequencer:
         x, v = X[m.entity, :2], X[m.entity, 2:]
         if math.hypot(*v) > self.rest_speed:
             return False
-        if m.legs is not None and m.leg < len(m.legs) - 1:
+        if m.exiting or (m.legs is not None and m.leg < len(m.legs) - 1):
             return False
         to_goal = math.hypot(*(x - np.asarray(m.goal)))
         if m.kind in (OpKind.NAVIGATE, OpKind.TRANSPORT):

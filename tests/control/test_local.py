@@ -16,6 +16,7 @@ from mrodrake.control.local import (
     DiskWorldNavigationFunction,
     _segment_distances,
     clear_goal,
+    exit_path,
     leg_barriers,
     local_path,
     local_task,
@@ -317,3 +318,30 @@ def test_docking_through_a_gap_only_the_tight_ring_passes():
     assert clear.min() >= 0.5 * PATH_CLEARANCE - 1e-9
     assert np.all(np.linalg.norm(pts - rim_c, axis=1) <= rim_r + 1e-9)
     np.testing.assert_allclose(path[-1], slot)
+
+
+def test_exit_path_leaves_a_pocket_between_packed_entities():
+    """Case II plan seed 0 (issue-16 randomization), step 52: r3 starts its navigation to p2 after releasing o3, in
+    the pocket between r2, o3 and r4 (0.127, 0.122 and 0.175 m from their disks grown by its 0.75 m).  The exit
+    path ends at the nearest point 0.5 m clear of all of them, inside p1's approach disk, along legs that keep half
+    the path clearance; it leaves through the pocket's open side (west), 0.8 m."""
+    centers = np.array([[91.206610, -279.955759], [85.253411, -278.413248], [85.253866, -281.583841],
+                        [85.865134, -279.959166]])  # r1, r2, r4, o3
+    radii = np.array([1.5, 1.5, 1.5, 0.95])
+    rim_c, rim_r = np.array([88.0, -280.0]), 4.0 + 10.0 - 0.75  # p1 grown by its 10 m approach ring
+    start = np.array([84.793060, -279.973856])
+    assert np.min(np.linalg.norm(centers - start, axis=1) - radii) < 0.13
+    legs = exit_path(start, centers, radii, rim_c, rim_r, 0.5, toward=[103.2, -160.0])
+    end = legs[-1]
+    assert np.min(np.linalg.norm(centers - end, axis=1) - radii) >= 0.5
+    assert np.linalg.norm(end - rim_c) <= rim_r
+    pts = np.vstack([start, legs])
+    clear = _segment_distances(pts[:-1], pts[1:], centers) - radii[None, :]
+    assert clear.min() >= 0.5 * PATH_CLEARANCE - 1e-9
+    length = np.sum(np.linalg.norm(np.diff(pts, axis=0), axis=1))
+    assert end[0] < start[0] and length <= 0.8 + 1e-9  # the 0.1 m rings: 0.8 m due west is the first clear point
+
+
+def test_exit_path_without_a_clear_point_is_an_error():
+    with pytest.raises(ValueError, match="exit path"):
+        exit_path([0.0, 0.0], np.array([[1.2, 0.0], [-1.2, 0.0]]), np.array([1.1, 1.1]), C0, 1.0, 0.5)

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from mrodrake.execution.placement import OpKind, place_run
-from mrodrake.execution.sequencer import Phase, Sequencer, Status, couplings_of
+from mrodrake.execution.sequencer import EXIT_CLEARANCE, Phase, Sequencer, Status, couplings_of
 from mrodrake.execution.steps import expand_steps
 from mrodrake.planning.plan import plan_scenario, task_words
 from mrodrake.scenario import load_scenario
@@ -95,3 +95,32 @@ def test_time_limit_ends_a_stuck_primitive(tiny):
     for k in range(40):  # the plants never move
         st = seq.tick(st, 0.5 * k, X)
     assert st.status is Status.FAILED and "time limit 5 s exceeded" in st.message
+
+
+def test_point_world_motions_start_clear_of_other_entities(tiny):
+    """A navigation or transport that starts nearer than EXIT_CLEARANCE to another entity first leaves on exit
+    legs of the local law in its source region's approach disk (same episode), so every point-world law starts
+    EXIT_CLEARANCE clear of every other entity (the kinematic plants end each leg at its waypoint)."""
+    sc, plan, words, placement = tiny
+    seq = Sequencer(sc, plan.ts, words, placement, couplings_of(plan))
+    st = seq.initial_state()
+    X = np.zeros((len(seq.entities), 4))
+    X[:, :2] = np.asarray(placement.initial)
+    starts, exits, t = {}, set(), 0.0
+    for _ in range(2000):
+        st = seq.tick(st, t, X)
+        if st.status is not Status.RUNNING:
+            break
+        m = st.active.motion if st.active is not None else None
+        if m is not None and m.kind in (OpKind.NAVIGATE, OpKind.TRANSPORT):
+            if m.exiting:
+                exits.add(m.episode)
+                assert st.tasks[m.controller].episode == m.episode
+            elif m.legs is None and m.episode not in starts:
+                starts[m.episode] = min((np.hypot(*(np.asarray(d.center) - m.free.start)) - d.radius - m.radius
+                                         for d in m.others), default=np.inf)
+        X = _kinematic(seq, st, X)
+        t += 0.5
+    assert st.status is Status.DONE, st.message
+    assert exits and exits <= set(starts)
+    assert min(starts.values()) >= EXIT_CLEARANCE - 1e-9
