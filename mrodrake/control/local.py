@@ -46,6 +46,9 @@ PATH_CLEARANCE = 0.1
 #: Largest barrier annulus width (m).
 WIDTH_CAP = 0.5
 _NODES_PER_DISK = 16
+#: Rounding allowance (m) of the clearance tests of :func:`local_path`: a chord between consecutive corners of a
+#: ring is tangent to the ring's grown circle, at exactly ρ + need from the disk's centre.
+_ROUND = 1e-9
 
 
 class IdentityMap:
@@ -115,8 +118,9 @@ def local_path(start, goal, centers, radii, rim_center, rim_radius, clearance: f
     the goal if they are closer than that).  Candidate corners sit on two rings around each disk: n =
     ``nodes_per_disk`` corners at radius (ρ + clearance)/cos(π/n), and 2n at (ρ + need)/cos(π/2n) for gaps
     (between disks, or a disk and the rim) too narrow for the first; consecutive corners of a ring are joined by
-    chords tangent to its grown circle.  Corners lie within ``need`` of the rim, and legs stay in the rim disk by
-    convexity.  Raises ValueError without a path.
+    chords tangent to its grown circle (so those chords keep exactly ``need``: the tests allow rounding,
+    :data:`_ROUND`).  Corners lie within ``need`` of the rim, and legs stay in the rim disk by convexity.  Raises
+    ValueError without a path.
     """
     s = np.asarray(start, dtype=float).reshape(2)
     g = np.asarray(goal, dtype=float).reshape(2)
@@ -141,13 +145,14 @@ def local_path(start, goal, centers, radii, rim_center, rim_radius, clearance: f
         ring = np.column_stack([np.cos(ang), np.sin(ang)]) / math.cos(math.pi / n)
         corners.append((c[:, None, :] + (rho + offset)[:, None, None] * ring[None, :, :]).reshape(-1, 2))
     corners = np.vstack(corners)
-    ok = np.linalg.norm(corners - rc, axis=1) <= rim_radius - need
-    ok &= np.all(np.linalg.norm(corners[:, None, :] - c[None, :, :], axis=-1) - rho[None, :] >= need, axis=1)
+    ok = np.linalg.norm(corners - rc, axis=1) <= rim_radius - need + _ROUND
+    ok &= np.all(np.linalg.norm(corners[:, None, :] - c[None, :, :], axis=-1) - rho[None, :] >= need - _ROUND,
+                 axis=1)
     nodes = np.vstack([s, g, corners[ok]])
     n = len(nodes)
     i, j = np.triu_indices(n, 1)
     dist = _segment_distances(nodes[i], nodes[j], c)
-    free = np.all(dist - rho[None, :] >= need, axis=1)
+    free = np.all(dist - rho[None, :] >= need - _ROUND, axis=1)
     W = np.zeros((n, n))
     lengths = np.linalg.norm(nodes[j] - nodes[i], axis=1)
     W[i[free], j[free]] = np.maximum(lengths[free], 1e-12)
@@ -160,6 +165,42 @@ def local_path(start, goal, centers, radii, rim_center, rim_radius, clearance: f
         path.append(nodes[k])
         k = pred[k]
     return np.array(path[::-1])
+
+
+def exit_path(start, centers, radii, rim_center, rim_radius: float, clearance: float, toward=None,
+              step: float = 0.1, angles: int = 36, tries: int = 24) -> np.ndarray:
+    """Straight legs (:func:`local_path`) from ``start`` to the nearest point (by path length; ties: nearer to
+    ``toward``) that keeps ``clearance`` from every disk (centers, radii) and lies in the rim disk: the exit leg of
+    a motion that starts closer than that to other entities.  Candidates lie on rings around the start every
+    ``step``; the ``tries`` nearest clear ones are routed.  Raises ValueError without one."""
+    s = np.asarray(start, dtype=float).reshape(2)
+    c = np.asarray(centers, dtype=float).reshape(-1, 2)
+    rho = np.asarray(radii, dtype=float).reshape(-1)
+    rc = np.asarray(rim_center, dtype=float).reshape(2)
+    ang = np.arange(angles) * (2.0 * math.pi / angles)
+    dirs = np.column_stack([np.cos(ang), np.sin(ang)])
+    rings = np.arange(1, int(math.ceil(2.0 * rim_radius / step)) + 1) * step
+    pts = (s + rings[:, None, None] * dirs[None, :, :]).reshape(-1, 2)
+    ok = np.linalg.norm(pts - rc, axis=1) <= rim_radius - 0.5 * PATH_CLEARANCE
+    if len(c):
+        ok &= np.all(np.linalg.norm(pts[:, None, :] - c[None, :, :], axis=-1) - rho[None, :] >= clearance, axis=1)
+    pts = pts[ok]
+    if not len(pts):
+        raise ValueError(f"exit path: no point in the region keeps {clearance:g} m from the other entities")
+    hint = np.asarray(toward, dtype=float).reshape(2) if toward is not None else s
+    order = np.lexsort((np.linalg.norm(pts - hint, axis=1), np.round(np.linalg.norm(pts - s, axis=1), 9)))
+    best, best_len = None, math.inf
+    for p in pts[order[:tries]]:
+        try:
+            legs = local_path(s, p, c, rho, rc, rim_radius)
+        except ValueError:
+            continue
+        length = float(np.sum(np.linalg.norm(np.diff(np.vstack([s, legs]), axis=0), axis=1)))
+        if length < best_len - 1e-9:
+            best, best_len = legs, length
+    if best is None:
+        raise ValueError(f"exit path: no straight-leg path to a point {clearance:g} m clear of the other entities")
+    return best
 
 
 def clear_goal(goal, centers, radii, rim_center, rim_radius: float, max_shift: float,

@@ -12,8 +12,10 @@ Each primitive is a small state machine (:class:`Phase`) over an :class:`Active`
 (disengage the team plant, back off), grasp (dock), navigation or transport (engage the team plant, go).  Its
 end point comes from the plan-wide placement (:mod:`mrodrake.execution.placement`).  Motions use the paper's
 adaptive law on the point-world map of the entity's free space, and the identity-map local law for docking,
-backing off, room moves and the last part of every navigation or transport inside the *approach disk* of the
-target region (:mod:`mrodrake.control.local`); the estimates carry over within one primitive (one episode).
+backing off, room moves, the last part of every navigation or transport inside the *approach disk* of the
+target region and, from a start nearer than :data:`EXIT_CLEARANCE` to another entity, its first part (exit legs
+inside the source region's approach disk) (:mod:`mrodrake.control.local`); the estimates carry over within one
+primitive (one episode).
 
 Parking brake: an entity that is not moving has zero dynamics; at rest (speed below ``rest_speed``) its
 velocity is reset to zero (the paper's friction can be negative, so an uncontrolled entity would drift).
@@ -31,7 +33,7 @@ import shapely
 
 from mrodrake.control.adaptive import AdaptiveGains
 from mrodrake.control.freespace import DEFAULT_MARGIN, Disk, entity_free_space
-from mrodrake.control.local import PATH_CLEARANCE, clear_goal, disk_obstacles, local_path, local_task
+from mrodrake.control.local import PATH_CLEARANCE, clear_goal, disk_obstacles, exit_path, local_path, local_task
 from mrodrake.control.tasks import build_map, build_task, departure_point, inside_circle
 from mrodrake.errors import UserError
 from mrodrake.execution.commands import PrimitiveRecord, SyncCommand, TaskCommand
@@ -54,6 +56,13 @@ LEG_TOL = 0.25 * PATH_CLEARANCE
 APPROACH = 10.0
 #: Depth (m) of the entity's ball inside the approach disk at which the local law takes over.
 SETTLE_DEPTH = 0.05
+#: Clearance (m) to every other entity at which a navigation or transport starts the point-world law; from a
+#: start nearer to them it first leaves on exit legs of the local law.  Entities packed closer than their
+#: grown radii merge into one hole of the free space, and a start in a pocket of it maps next to that hole's
+#: point b_ℓ: its barrier, kept off the start (Prop. 1), then acts only within ~1 cm of the pocket's wall
+#: (case II seed 0, step 52: τ = 2.6e-10, 0.12 m gaps, u up to 2e4 N, integrator failure).  The same margin
+#: as to walls, obstacles and other regions (DEFAULT_MARGIN).
+EXIT_CLEARANCE = DEFAULT_MARGIN
 
 
 class Phase(Enum):
@@ -61,7 +70,6 @@ class Phase(Enum):
 
     START = "start"
     ENGAGE = "engage"
-    DEPART = "depart"
     DISENGAGE = "disengage"
     MOVING = "moving"
 
@@ -76,7 +84,9 @@ class Status(Enum):
 class Motion:
     """One controller driving one plant: the moving entity (a robot, or the object of a team), its team,
     regions, covering radius, start and goal; ``legs`` are the straight legs of the local law (None while on
-    the point-world law), ``leg`` the current one."""
+    the point-world law), ``leg`` the current one; ``exiting``: the legs are exit legs in the source region
+    (out of another entity's margin, or ``departed``: to a start that maps inside the circle barrier) before
+    the point-world law starts."""
 
     kind: OpKind
     entity: int
@@ -99,6 +109,8 @@ class Motion:
     leg: int = 0
     settle_tried: bool = False
     extra: float = 0.0
+    exiting: bool = False
+    departed: bool = False
 
 
 @dataclass(frozen=True)
@@ -141,14 +153,6 @@ class ExecState:
 
 class _Failure(Exception):
     """A primitive cannot go on (recorded; ends the mission with ok=False)."""
-
-
-class _Depart(Exception):
-    """The start of a point-world motion maps outside the circle barrier: it leaves from ``point`` instead."""
-
-    def __init__(self, point: np.ndarray):
-        super().__init__()
-        self.point = point
 
 
 @dataclass
@@ -393,54 +397,61 @@ class Sequencer:
         return ed.episode
 
     def _start_point_world(self, ed: _Edit, t: float, X: np.ndarray, op: PlacedOp, *, entity: int, team: tuple,
-                           radius: float, src: int, dst: int, plant: str, controller: str, offsets=(),
-                           depart: bool = True) -> Motion:
-        """The point-world motion of ``op``; raises :class:`_Depart` (if ``depart``) when its start maps
-        outside the circle barrier and a departure point inside the source region is found."""
+                           radius: float, src: int, dst: int, plant: str, controller: str, offsets=()) -> Motion:
+        start, goal = X[entity, :2].copy(), np.asarray(op.goal, dtype=float)
+        offsets = tuple(map(tuple, np.asarray(offsets, dtype=float).reshape(-1, 2)))
+        limit = self._limit(float(np.hypot(*(goal - start))))
+        m = Motion(op.kind, entity, team, controller, plant, src, dst, radius, tuple(start), tuple(goal), t, limit,
+                   self._new_episode(ed), None, offsets=offsets)
+        self._unfreeze(ed, plant)
+        return self._exit(ed, X, m) or self._point_world(ed, X, m)
+
+    def _exit(self, ed: _Edit, X: np.ndarray, m: Motion) -> Motion | None:
+        """Exit legs of the local law in the source region's approach disk to the nearest point EXIT_CLEARANCE
+        clear of every other entity, when the start is nearer than that to one (None: not needed, or no path;
+        the point-world law then starts where the entity is)."""
+        c, R, centers, radii = self._local_world(X, m.entity, m.radius, m.src, m.team, self.approach[m.src])
+        x = X[m.entity, :2]
+        if not len(centers) or np.min(np.linalg.norm(centers - x, axis=1) - radii) >= EXIT_CLEARANCE:
+            return None
+        try:
+            legs = exit_path(x, centers, radii, c, R, EXIT_CLEARANCE, toward=np.asarray(m.goal))
+        except ValueError:
+            return None
+        m = replace(m, legs=tuple(map(tuple, legs)), leg=0, extra=float(self.approach[m.src]), exiting=True)
+        ed.tasks[m.controller] = TaskCommand(self._leg_task(X, m), m.episode)
+        return m
+
+    def _point_world(self, ed: _Edit, X: np.ndarray, m: Motion) -> Motion:
+        """The point-world law from where the entity is (same episode: the estimates carry over); a start that
+        maps outside the circle barrier ρ₀ (a spacing from an entity whose grown disk merges with the walls lies
+        in the outer boundary's band) first departs on local legs inside the source region to the nearest point
+        that maps inside it (:func:`~mrodrake.control.tasks.departure_point`), once."""
+        entity, radius, team = m.entity, m.radius, m.team
         movers = {entity} | set(team)
         others = self._disks(X, movers)
-        start, goal = X[entity, :2].copy(), np.asarray(op.goal, dtype=float)
+        start, goal, src, dst = X[entity, :2].copy(), np.asarray(m.goal, dtype=float), m.src, m.dst
         name = self.entities[entity]
         try:
             free = entity_free_space(self.scenario, radius, start, goal, src, dst, others)
             pw = build_map(free)
-            if depart and not inside_circle(pw, start)[0]:
+            if not m.departed and not inside_circle(pw, start)[0]:
                 c, R, centers, radii = self._local_world(X, entity, radius, src, team)
                 point = departure_point(pw, free, centers, radii, c, R, self.dock_tol)
-                if point is not None:
-                    raise _Depart(point)
-            task = build_task(self.scenario, free, max(1, len(team)), label=f"{name} {op.kind.value}", pw_map=pw)
+                if point is not None:  # reachable by a local path (departure_point checked it)
+                    legs = local_path(start, point, centers, radii, c, R)
+                    m = replace(m, legs=tuple(map(tuple, legs)), leg=0, extra=0.0, exiting=True, departed=True)
+                    ed.tasks[m.controller] = TaskCommand(self._leg_task(X, m), m.episode)
+                    return m
+            task = build_task(self.scenario, free, max(1, len(team)), label=f"{name} {m.kind.value}", pw_map=pw)
         except (UserError, ValueError) as exc:
-            raise _Failure(f"{op.kind.value} of {name}: {str(exc).splitlines()[0]}") from None
-        ep = self._new_episode(ed)
-        ed.tasks[controller] = TaskCommand(task, ep)
-        self._unfreeze(ed, plant)
-        return Motion(op.kind, entity, team, controller, plant, src, dst, radius, tuple(start), tuple(goal), t,
-                      self._limit(float(np.hypot(*(goal - start)))), ep, task, free, tuple(others),
-                      tuple(map(tuple, np.asarray(offsets, dtype=float).reshape(-1, 2))))
-
-    def _leave(self, ed: _Edit, t: float, X: np.ndarray, a: Active, **kw) -> bool:
-        """Start the point-world motion of ``a`` (phase MOVING), or first a local move inside the source
-        region to its departure point (phase DEPART, then the point-world motion from where it ended)."""
-        if a.phase is Phase.DEPART:
-            if not self._wait(ed, t, X, a):
-                return False
-            m = self._start_point_world(ed, t, X, a.op, depart=False, **kw)
-            ed.active = replace(a, phase=Phase.MOVING, motion=m)
-            return False
-        try:
-            m = self._start_point_world(ed, t, X, a.op, **kw)
-        except _Depart as d:
-            m = self._start_local(ed, t, X, a.op, entity=kw["entity"], team=kw["team"], radius=kw["radius"],
-                                  plant=kw["plant"], controller=kw["controller"], goal=d.point,
-                                  offsets=kw.get("offsets", ()), region=kw["src"], kind=OpKind.ROOM)
-            ed.active = replace(a, phase=Phase.DEPART, motion=m)
-            return False
-        ed.active = replace(a, phase=Phase.MOVING, motion=m)
-        return False
+            raise _Failure(f"{m.kind.value} of {name}: {str(exc).splitlines()[0]}") from None
+        ed.tasks[m.controller] = TaskCommand(task, m.episode)
+        return replace(m, task=task, free=free, others=tuple(others), legs=None, leg=0, extra=0.0, exiting=False)
 
     def _leg_task(self, X: np.ndarray, m: Motion):
-        c, R, centers, radii = self._local_world(X, m.entity, m.radius, m.dst, m.team, m.extra)
+        c, R, centers, radii = self._local_world(X, m.entity, m.radius, m.src if m.exiting else m.dst, m.team,
+                                                 m.extra)
         ctrl = self.scenario.control
         # a team of n robots and its object has n + 1 bodies whose friction bounds add up (α_A = Σ α):
         # k_v_local per body keeps the velocity loop damped (tests/control/test_local.py)
@@ -453,15 +464,12 @@ class Sequencer:
             raise _Failure(f"{m.kind.value} of {self.entities[m.entity]}: {exc}") from None
 
     def _start_local(self, ed: _Edit, t: float, X: np.ndarray, op: PlacedOp, *, entity: int, team: tuple,
-                     radius: float, plant: str, controller: str, goal: np.ndarray, offsets=(),
-                     region: int | None = None, kind: OpKind | None = None) -> Motion:
-        """A local motion of ``entity`` (a robot, or a team's object) inside the region of ``op`` (or
-        ``region``) to ``goal``, of the kind of ``op`` (or ``kind``)."""
-        k = op.region if region is None else region
-        kind = op.kind if kind is None else kind
+                     radius: float, plant: str, controller: str, goal: np.ndarray, offsets=()) -> Motion:
+        """A local motion of ``entity`` (a robot, or a team's object) inside the region of ``op`` to ``goal``."""
+        k = op.region
         c, R, centers, radii = self._local_world(X, entity, radius, k, team)
         try:
-            if kind in (OpKind.ROOM, OpKind.RELEASE):  # planned points: others end within GOAL_TOL of theirs
+            if op.kind in (OpKind.ROOM, OpKind.RELEASE):  # planned points: others end within GOAL_TOL of theirs
                 goal = clear_goal(goal, centers, radii, c, R, 2.0 * GOAL_TOL)
             legs = local_path(X[entity, :2], goal, centers, radii, c, R)
         except ValueError as exc:
@@ -469,7 +477,7 @@ class Sequencer:
         start = X[entity, :2].copy()
         length = float(np.sum(np.linalg.norm(np.diff(np.vstack([start, legs]), axis=0), axis=1)))
         ep = self._new_episode(ed)
-        m = Motion(kind, entity, team, controller, plant, k, k, radius, tuple(start), tuple(map(float, goal)), t,
+        m = Motion(op.kind, entity, team, controller, plant, k, k, radius, tuple(start), tuple(map(float, goal)), t,
                    self._limit(length), ep, None, None, tuple(self._disks(X, {entity, *team})),
                    tuple(map(tuple, np.asarray(offsets, dtype=float).reshape(-1, 2))),
                    tuple(map(tuple, legs)), 0, True)
@@ -498,9 +506,13 @@ class Sequencer:
         return m
 
     def _next_leg(self, ed: _Edit, X: np.ndarray, m: Motion) -> Motion:
-        if m.legs is None or m.leg >= len(m.legs) - 1:
+        if m.legs is None:
             return m
         if math.hypot(*(X[m.entity, :2] - np.asarray(m.legs[m.leg]))) > LEG_TOL:
+            return m
+        if m.exiting and m.leg >= len(m.legs) - 1:
+            return self._point_world(ed, X, m)
+        if m.leg >= len(m.legs) - 1:
             return m
         m = replace(m, leg=m.leg + 1)
         task = self._leg_task(X, m)
@@ -518,7 +530,7 @@ class Sequencer:
         x, v = X[m.entity, :2], X[m.entity, 2:]
         if math.hypot(*v) > self.rest_speed:
             return False
-        if m.legs is not None and m.leg < len(m.legs) - 1:
+        if m.exiting or (m.legs is not None and m.leg < len(m.legs) - 1):
             return False
         to_goal = math.hypot(*(x - np.asarray(m.goal)))
         if m.kind in (OpKind.NAVIGATE, OpKind.TRANSPORT):
@@ -641,28 +653,32 @@ class Sequencer:
         return False
 
     def _navigate(self, ed: _Edit, t: float, X: np.ndarray, a: Active) -> bool:
-        act = a.op.action
-        if a.phase in (Phase.START, Phase.DEPART):
+        op, act = a.op, a.op.action
+        if a.phase is Phase.START:
             r = act.robot
-            return self._leave(ed, t, X, a, entity=r, team=(), radius=float(self.radii[r]), src=act.src,
-                               dst=act.dst, plant=self.robots[r], controller=f"nav_{self.robots[r]}")
+            m = self._start_point_world(ed, t, X, op, entity=r, team=(), radius=float(self.radii[r]), src=act.src,
+                                        dst=act.dst, plant=self.robots[r], controller=f"nav_{self.robots[r]}")
+            ed.active = replace(a, phase=Phase.MOVING, motion=m)
+            return False
         return self._wait(ed, t, X, a)
 
     def _transport(self, ed: _Edit, t: float, X: np.ndarray, a: Active) -> bool:
-        act = a.op.action
+        op, act = a.op, a.op.action
         j, team = act.obj, tuple(act.team)
         if a.phase is Phase.START:
             if not self._engage(ed, X, j, team):
                 ed.active = replace(a, phase=Phase.ENGAGE)
                 return False
             a = ed.active = replace(a, phase=Phase.ENGAGE)
-        if a.phase in (Phase.ENGAGE, Phase.DEPART):
+        if a.phase is Phase.ENGAGE:
             self._route(ed, j, team)
             name = self.team_name(j, team)
             offsets = np.asarray(ed.syncs[name].offsets, dtype=float)
-            return self._leave(ed, t, X, a, entity=self.N + j, team=team,
-                               radius=self._team_radius(team, offsets, j), src=act.src, dst=act.dst,
-                               plant=name, controller=name + "_ctrl", offsets=offsets)
+            m = self._start_point_world(ed, t, X, op, entity=self.N + j, team=team,
+                                        radius=self._team_radius(team, offsets, j), src=act.src, dst=act.dst,
+                                        plant=name, controller=name + "_ctrl", offsets=offsets)
+            ed.active = replace(a, phase=Phase.MOVING, motion=m)
+            return False
         return self._wait(ed, t, X, a)
 
 

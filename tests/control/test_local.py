@@ -16,6 +16,7 @@ from mrodrake.control.local import (
     DiskWorldNavigationFunction,
     _segment_distances,
     clear_goal,
+    exit_path,
     leg_barriers,
     local_path,
     local_task,
@@ -298,3 +299,49 @@ def test_clear_goal_in_a_mission_world():
     g = clear_goal(np.array([198.045, -130.0]), centers, radii, np.array([200.0, -130.0]), 3.25, 0.1)
     assert np.linalg.norm(g - centers[1]) == pytest.approx(1.5 + 0.25 * PATH_CLEARANCE, abs=1e-9)
     assert np.all(np.linalg.norm(centers - g, axis=1) - radii >= 0.25 * PATH_CLEARANCE - 1e-9)
+
+
+def test_docking_through_a_gap_only_the_tight_ring_passes():
+    """Case II plan seed 1 (issue-16 randomization), step 45: r4 docks at o3's third slot, the only way round o1
+    (0.107 m to the rim, 0.052 m to the docked r3) passes on the tight ring, whose chords keep exactly the required
+    0.05 m; one of them came out 1.7e-14 m short and the mission stopped with "no collision-free path".  The path
+    exists and keeps half the path clearance up to rounding."""
+    centers = np.array([[85.317932, -280.851145], [86.939359, -279.972207], [88.211745, -277.817326],
+                        [88.535440, -282.101470], [85.865595, -279.957842]])  # r2, r3 (docked), o1, o2, o3
+    radii = np.array([1.5, 1.5, 0.95, 0.95, 0.95])  # grown by r4's 0.75 m
+    rim_c, rim_r = np.array([88.0, -280.0]), 3.25
+    start = np.array([88.463309, -283.152186])
+    slot = centers[4] + 1.05 * np.array([math.cos(2 * math.pi / 3), math.sin(2 * math.pi / 3)])
+    path = local_path(start, slot, centers, radii, rim_c, rim_r)
+    pts = np.vstack([start, path])
+    clear = _segment_distances(pts[:-1], pts[1:], centers) - radii[None, :]
+    assert clear.min() >= 0.5 * PATH_CLEARANCE - 1e-9
+    assert np.all(np.linalg.norm(pts - rim_c, axis=1) <= rim_r + 1e-9)
+    np.testing.assert_allclose(path[-1], slot)
+
+
+def test_exit_path_leaves_a_pocket_between_packed_entities():
+    """Case II plan seed 0 (issue-16 randomization), step 52: r3 starts its navigation to p2 after releasing o3, in
+    the pocket between r2, o3 and r4 (0.127, 0.122 and 0.175 m from their disks grown by its 0.75 m).  The exit
+    path ends at the nearest point 0.5 m clear of all of them, inside p1's approach disk, along legs that keep half
+    the path clearance; it leaves through the pocket's open side (west), 0.8 m."""
+    centers = np.array([[91.206610, -279.955759], [85.253411, -278.413248], [85.253866, -281.583841],
+                        [85.865134, -279.959166]])  # r1, r2, r4, o3
+    radii = np.array([1.5, 1.5, 1.5, 0.95])
+    rim_c, rim_r = np.array([88.0, -280.0]), 4.0 + 10.0 - 0.75  # p1 grown by its 10 m approach ring
+    start = np.array([84.793060, -279.973856])
+    assert np.min(np.linalg.norm(centers - start, axis=1) - radii) < 0.13
+    legs = exit_path(start, centers, radii, rim_c, rim_r, 0.5, toward=[103.2, -160.0])
+    end = legs[-1]
+    assert np.min(np.linalg.norm(centers - end, axis=1) - radii) >= 0.5
+    assert np.linalg.norm(end - rim_c) <= rim_r
+    pts = np.vstack([start, legs])
+    clear = _segment_distances(pts[:-1], pts[1:], centers) - radii[None, :]
+    assert clear.min() >= 0.5 * PATH_CLEARANCE - 1e-9
+    length = np.sum(np.linalg.norm(np.diff(pts, axis=0), axis=1))
+    assert end[0] < start[0] and length <= 0.8 + 1e-9  # the 0.1 m rings: 0.8 m due west is the first clear point
+
+
+def test_exit_path_without_a_clear_point_is_an_error():
+    with pytest.raises(ValueError, match="exit path"):
+        exit_path([0.0, 0.0], np.array([[1.2, 0.0], [-1.2, 0.0]]), np.array([1.1, 1.1]), C0, 1.0, 0.5)

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from mrodrake.execution.placement import OpKind, place_run
-from mrodrake.execution.sequencer import Phase, Sequencer, Status, couplings_of
+from mrodrake.execution.sequencer import EXIT_CLEARANCE, Phase, Sequencer, Status, couplings_of
 from mrodrake.execution.steps import expand_steps
 from mrodrake.planning.plan import plan_scenario, task_words
 from mrodrake.scenario import load_scenario
@@ -125,3 +125,32 @@ def test_an_arrival_needs_the_whole_ball_inside_the_target_region(tiny):
     assert not seq._arrived(out, m)
     out[m.entity, :2] = m.goal
     assert seq._arrived(out, m)
+
+
+def test_point_world_motions_start_clear_of_other_entities(tiny):
+    """A navigation or transport that starts nearer than EXIT_CLEARANCE to another entity first leaves on exit
+    legs of the local law in its source region's approach disk (same episode), so every point-world law starts
+    EXIT_CLEARANCE clear of every other entity (the kinematic plants end each leg at its waypoint)."""
+    sc, plan, words, placement = tiny
+    seq = Sequencer(sc, plan.ts, words, placement, couplings_of(plan))
+    st = seq.initial_state()
+    X = np.zeros((len(seq.entities), 4))
+    X[:, :2] = np.asarray(placement.initial)
+    starts, exits, t = {}, set(), 0.0
+    for _ in range(2000):
+        st = seq.tick(st, t, X)
+        if st.status is not Status.RUNNING:
+            break
+        m = st.active.motion if st.active is not None else None
+        if m is not None and m.kind in (OpKind.NAVIGATE, OpKind.TRANSPORT):
+            if m.exiting:
+                exits.add(m.episode)
+                assert st.tasks[m.controller].episode == m.episode
+            elif m.legs is None and m.episode not in starts:
+                starts[m.episode] = min((np.hypot(*(np.asarray(d.center) - m.free.start)) - d.radius - m.radius
+                                         for d in m.others), default=np.inf)
+        X = _kinematic(seq, st, X)
+        t += 0.5
+    assert st.status is Status.DONE, st.message
+    assert exits and exits <= set(starts)
+    assert min(starts.values()) >= EXIT_CLEARANCE - 1e-9
