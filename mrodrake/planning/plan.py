@@ -358,7 +358,8 @@ def _check_budget(planner: str, iterations: int | None, time_limit: float | None
 
 
 def plan_scenario(scenario, planner: str = "stylus", seed: int | None = None, iterations: int | None = None,
-                  time_limit: float | None = None, progress: Callable[[dict], None] | None = None) -> Plan:
+                  time_limit: float | None = None, progress: Callable[[dict], None] | None = None,
+                  replan: bool = True) -> Plan:
     """Plan a scenario (a :class:`~mrodrake.scenario.Scenario` or a YAML path) and return the verified plan.
 
     ``planner="stylus"``: STyLuS* with ``seed`` (default ``planning.seed``) for ``iterations`` (default
@@ -366,7 +367,8 @@ def plan_scenario(scenario, planner: str = "stylus", seed: int | None = None, it
     Both plan on the executed-word semantics.  Before STyLuS* samples, :func:`~mrodrake.planning.decide.decide`
     tries to prove the task unsatisfiable (relaxations; the exact search when the product is small, whose
     plan is returned if STyLuS* finds none).  Unsatisfiable tasks and objects no team can move raise a
-    one-line UserError; a budget that runs out undecided raises NoPlanFound (a UserError).
+    one-line UserError; a budget that runs out undecided raises NoPlanFound (a UserError).  ``replan=False``:
+    STyLuS* without the exact re-planning of its best lassos (the sampled lasso).
     """
     if not isinstance(scenario, Scenario):
         scenario = load_scenario(scenario)
@@ -387,7 +389,8 @@ def plan_scenario(scenario, planner: str = "stylus", seed: int | None = None, it
         used_seed = scenario.planning.seed if seed is None else int(seed)
         its = scenario.planning.iterations if iterations is None else int(iterations)
         try:
-            res = Stylus(ts, nba, words.relevant, seed=used_seed).run(its, time_limit=time_limit, progress=progress)
+            res = Stylus(ts, nba, words.relevant, seed=used_seed, replan=replan).run(its, time_limit=time_limit,
+                                                                                     progress=progress)
         except NoPlanFound as e:
             if decision.exact is None:
                 raise NoPlanFound(f"{e}; {decision.undecided}") from None
