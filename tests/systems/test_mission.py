@@ -19,15 +19,13 @@ ROOT = Path(__file__).resolve().parents[2]
 # case II (about twice case I's simulation) is in the slow set, to keep the default suite within its budget
 @pytest.fixture(scope="module", params=["case_study_1", pytest.param("case_study_2", marks=pytest.mark.slow)])
 def mission(request, tmp_path_factory):
-    from mrodrake.planning.plan import plan_scenario
     from mrodrake.run import run_mission
     from mrodrake.scenario import load_scenario
 
     scn = load_scenario(ROOT / "scenarios" / f"{request.param}.yaml")
-    plan = plan_scenario(scn, "stylus", seed=0)
     out = tmp_path_factory.mktemp(request.param)
-    log = run_mission(scn, plan=plan, suffix_cycles=1, seed=0, out_dir=out)
-    return scn, plan, log, out
+    log = run_mission(scn, suffix_cycles=1, seed=0, out_dir=out)  # plans (STyLuS*, seed 0), as `mrodrake run`
+    return scn, log.plan, log, out
 
 
 def _positions(out: Path, scn):
