@@ -552,7 +552,7 @@ def _record_log(row: dict, task: MissionTask, scenario: Scenario, log, stopped: 
 def execute(task: MissionTask) -> dict:
     """Plan and simulate one mission and return its row; never raises for a failing mission."""
     from mrodrake.planning.plan import plan_scenario
-    from mrodrake.run import placed_mission
+    from mrodrake.run import placed_mission, resampler
 
     t0, cpu0 = time.perf_counter(), time.process_time()
     row = base_row(task)
@@ -571,8 +571,7 @@ def execute(task: MissionTask) -> dict:
         stage = "mission"
         if task.inject == "raise":
             raise RuntimeError(f"injected failure (spec inject[{task.index}])")
-        resample = None if task.planner == "exact" else (lambda: plan_scenario(
-            scenario, task.planner, seed=seed, iterations=task.iterations, time_limit=limit, replan=False))
+        resample = resampler(scenario, task.planner, seed, iterations=task.iterations, time_limit=limit)
         plan, mission, note = placed_mission(scenario, plan, resample, suffix_cycles=task.suffix_cycles,
                                              seed=task.layout_seed)
         row["note"] = note

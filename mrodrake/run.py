@@ -41,6 +41,13 @@ def placed_mission(scenario: Scenario, plan: Plan, resample: Callable[[], Plan] 
                               f"executing the sampled lasso (cost {alt.total_cost:.2f})")
 
 
+def resampler(scenario: Scenario, planner: str, seed: int, **plan_options) -> Callable[[], Plan] | None:
+    """The ``resample`` of :func:`placed_mission` for a plan of ``planner`` (None for the exact planner)."""
+    if planner == "exact":
+        return None
+    return lambda: plan_scenario(scenario, planner, seed=seed, replan=False, **plan_options)
+
+
 def run_mission(scenario, plan=None, planner: str = "stylus", suffix_cycles: int = 1, seed: int = 0,
                 out_dir=None, progress: Callable[[int, int], None] | None = None, **mission_options) -> MissionLog:
     """Plan (unless ``plan`` is given: a Plan or a plan.json path), simulate the prefix and ``suffix_cycles``
@@ -50,7 +57,7 @@ def run_mission(scenario, plan=None, planner: str = "stylus", suffix_cycles: int
     resample = None
     if plan is None:
         plan = plan_scenario(scenario, planner, seed=None if planner == "exact" else seed)
-        resample = lambda: plan_scenario(scenario, planner, seed=seed, replan=False)  # noqa: E731
+        resample = resampler(scenario, planner, seed)
     elif not hasattr(plan, "steps"):
         plan = load_plan(scenario, plan)
     if out_dir is not None:
@@ -92,7 +99,7 @@ def run(args: argparse.Namespace) -> int:
     if plan is None:
         print(f"planning {scenario.name} with {args.planner} ...", file=sys.stderr)
         plan = plan_scenario(scenario, args.planner, seed=None if args.planner == "exact" else args.seed)
-        resample = lambda: plan_scenario(scenario, args.planner, seed=args.seed, replan=False)  # noqa: E731
+        resample = resampler(scenario, args.planner, args.seed)
     plan, mission, note = placed_mission(scenario, plan, resample, suffix_cycles=args.suffix_cycles, seed=args.seed)
     if note:
         print(note, file=sys.stderr)

@@ -15,7 +15,7 @@ def run_mission_benchmark(stream=None, scenario_path=None, plan=None, suffix_cyc
     """Plan (STyLuS*, ``seed``) unless ``plan`` is given, simulate, print a table to ``stream``; returns the
     numbers as a dict."""
     from mrodrake.planning.plan import plan_scenario
-    from mrodrake.run import placed_mission
+    from mrodrake.run import placed_mission, resampler
     from mrodrake.scenario import load_scenario
 
     stream = stream or sys.stdout
@@ -24,7 +24,7 @@ def run_mission_benchmark(stream=None, scenario_path=None, plan=None, suffix_cyc
     resample = None
     if plan is None:
         plan = plan_scenario(scenario, "stylus", seed=seed)
-        resample = lambda: plan_scenario(scenario, "stylus", seed=seed, replan=False)  # noqa: E731
+        resample = resampler(scenario, "stylus", seed)
     t_plan = time.perf_counter() - t0
     t1 = time.perf_counter()
     plan, mission, note = placed_mission(scenario, plan, resample, suffix_cycles=suffix_cycles, seed=seed)
