@@ -41,6 +41,8 @@ _CHUNK = 1 << 15  # kernel entries per block in batch evaluation and assembly
 _TWO_PI = 2.0 * math.pi
 _TINY = 1e-300
 _CORNER_FRACTION = 1.0 / 40.0  # panels at convex corners of the outer boundary: at most this x max_panel
+#: A coarse hole is re-solved only if halving its panel caps adds at least this share of panels to its ring.
+REFINE_GROWTH = 1.1
 _RIDGE_FRACTIONS = (0.125, 0.875)  # circle-deficit samples along each outer panel (where its error peaks)
 _RIDGE_OFFSETS = (0.0625, 0.125, 0.25, 0.5)  # inward steps (x panel length) searched for the ridge of |H|
 
@@ -480,8 +482,12 @@ class PointWorldMap:
         hole whose image (max |H − b_ℓ| on its boundary) exceeds ``blob_tolerance`` × its separation (half the
         distance from b_ℓ to the nearest other b or to the unit circle) gets twice finer panels (fraction and
         gap cap halved), at most ``max_refinements`` times, so that every hole really collapses to (nearly) a
-        point; ``n_solves`` records how many solves the build took.  ``circle_deficit`` is δ_max of
-        :meth:`outer_ridge_deficit` (how far short of the unit circle |H| stays along the outer boundary).
+        point — unless no coarse hole's ring gets :data:`REFINE_GROWTH` times the panels (the caps that bind
+        there, min_panel or the corner and curvature caps, do not depend on the factor: on case study I's
+        transport maps the image of one wall-side hole stayed at 0.21-0.26 of its separation over three
+        re-solves of +3 panels each, which doubled the build time); ``n_solves`` records how many solves the
+        build took.  ``circle_deficit`` is δ_max of :meth:`outer_ridge_deficit` (how far short of the unit
+        circle |H| stays along the outer boundary).
         """
         t0 = time.perf_counter()
         poly = _validate(free_space)
@@ -501,26 +507,34 @@ class PointWorldMap:
         outer = np.asarray(poly.exterior.coords)
         factors = [float(hole_refinement)] * len(poly.interiors)
         gap_caps = gap_fraction * _hole_gaps(poly)
+        opts = (max_panel, min_panel, clearance_fraction, grading, curvature_fraction)
+
+        def panels_for(fs):
+            return cls._panels(poly, outer, fs, [c * hole_refinement / f for c, f in zip(gap_caps, fs)], *opts)
+
+        panels = panels_for(factors)
         for attempt in range(max_refinements + 1):
-            caps = [c * hole_refinement / f for c, f in zip(gap_caps, factors)]
-            pw = cls._solve(poly, outer, factors, caps, max_panel, min_panel, clearance_fraction, grading,
-                            curvature_fraction)
+            pw = cls._solve(poly, panels)
             if not factors:
                 break
             coarse = pw._hole_blobs() > blob_tolerance * _separation(pw.hole_points)
             if attempt == max_refinements or not np.any(coarse):
                 break
-            factors = [f * 2.0 if c else f for f, c in zip(factors, coarse)]
+            refined = [f * 2.0 if c else f for f, c in zip(factors, coarse)]
+            finer = panels_for(refined)
+            old, new = (np.bincount(p[3], minlength=len(factors) + 1)[1:] for p in (panels, finer))
+            if not np.any(new[coarse] >= REFINE_GROWTH * old[coarse]):
+                break  # a re-solve would give (nearly) this map again
+            factors, panels = refined, finer
         pw.n_solves = attempt + 1
         pw.circle_deficit = pw.outer_ridge_deficit()
         pw.build_seconds = time.perf_counter() - t0
         return pw
 
-    @classmethod
-    def _solve(cls, poly, outer, factors, caps, max_panel, min_panel, clearance_fraction, grading,
-               curvature_fraction):
-        """One discretisation (hole ℓ refined ``factors[ℓ]`` times, its panels at most ``caps[ℓ]``) and solve."""
-        t0 = time.perf_counter()
+    @staticmethod
+    def _panels(poly, outer, factors, caps, max_panel, min_panel, clearance_fraction, grading, curvature_fraction):
+        """One discretisation: hole ℓ refined ``factors[ℓ]`` times, its panels at most ``caps[ℓ]``; returns
+        (outer perimeter, panel starts, ends, ring ids, arc positions of starts and ends)."""
         rings = [_prepare_ring(outer, is_exterior=True, curvature_fraction=curvature_fraction,
                                corner_cap=_CORNER_FRACTION * max_panel)]
         rings += [
@@ -536,8 +550,15 @@ class PointWorldMap:
             grading=grading,
             ring_caps=[math.inf, *caps],
         )
+        return rings[0].perimeter, a_xy, b_xy, rid, s_a, s_b
+
+    @classmethod
+    def _solve(cls, poly, panels):
+        """Solve for the panel charges of one discretisation (``_panels``)."""
+        t0 = time.perf_counter()
+        perimeter, a_xy, b_xy, rid, s_a, s_b = panels
         n = len(a_xy)
-        n_holes = len(rings) - 1
+        n_holes = len(poly.interiors)
         v, L_link, tx, ty, real = _chain(a_xy, b_xy, rid)
         L = L_link[real]
         mid = 0.5 * (a_xy + b_xy)
@@ -557,7 +578,7 @@ class PointWorldMap:
         M[n + hole_of_panel[on_hole], np.flatnonzero(on_hole)] = L[on_hole]  # zero charge per hole
         M[n + n_holes, :n] = L  # zero total charge
         ext = ~on_hole
-        theta = 2.0 * np.pi * (0.5 * (s_a + s_b)[ext]) / rings[0].perimeter
+        theta = 2.0 * np.pi * (0.5 * (s_a + s_b)[ext]) / perimeter
         rhs = np.zeros((size, 2))
         rhs[np.flatnonzero(ext), 0] = np.cos(theta)
         rhs[np.flatnonzero(ext), 1] = np.sin(theta)
@@ -567,7 +588,7 @@ class PointWorldMap:
         sigma = sol[:n]
         holes = sol[n : n + n_holes]
         const = sol[n + n_holes]
-        exterior_param = (s_a[ext], s_b[ext], rings[0].perimeter)
+        exterior_param = (s_a[ext], s_b[ext], perimeter)
         return cls(a_xy, b_xy, rid, sigma, holes, const, poly, exterior_param, time.perf_counter() - t0)
 
     # ------------------------------------------------------------------ properties
