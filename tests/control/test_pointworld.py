@@ -433,3 +433,14 @@ def test_outer_ridge_lies_beyond_the_circle_barrier(which, request):
     norm_h = np.linalg.norm(pw(pts.reshape(-1, 2)), axis=1).reshape(pts.shape[:3])
     ridge = np.where(inside, norm_h, 0.0).max(axis=2)
     assert ridge.min() > rho0
+
+
+def test_refinement_stops_when_halving_the_caps_adds_no_panels():
+    """A hole stays coarse (blob tolerance 0) in both builds; with every panel at min_panel = max_panel halving
+    its caps cannot change the discretisation, so the build does not re-solve, while with free panel sizes
+    it refines (and re-solves) up to max_refinements."""
+    free = box(0.0, 0.0, 20.0, 10.0).difference(Point(10.0, 5.0).buffer(1.0))
+    fixed = PointWorldMap.build(free, max_panel=0.2, min_panel=0.2, blob_tolerance=0.0, max_refinements=2)
+    assert fixed.n_solves == 1
+    free_sizes = PointWorldMap.build(free, blob_tolerance=0.0, max_refinements=2)
+    assert free_sizes.n_solves == 3
