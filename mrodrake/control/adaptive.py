@@ -318,14 +318,28 @@ class NavigationTask:
             v_raw, vdot_raw, J, grad, phi = desired_velocity(self.pw_map, self.nf, x, xdot)
         if outside_free_set(phi):
             return self._fault(x, xdot, "is outside the free set (past a barrier of the navigation function)")
-        if not (np.all(np.isfinite(v_raw)) and np.all(np.isfinite(vdot_raw))):
+        v0, v1 = v_raw.tolist()
+        a0, a1 = vdot_raw.tolist()
+        if not (math.isfinite(v0) and math.isfinite(v1) and math.isfinite(a0) and math.isfinite(a1)):
             return self._fault(x, xdot, f"is where the point-world map is degenerate "
                                   f"(det J_H = {np.linalg.det(J):.3g}): the entity left the region the map resolves")
-        v_d, vdot_d = saturate_velocity(v_raw, vdot_raw, self.v_max)
-        e_v = xdot - v_d
-        u = navigation_input(J, grad, vdot_d, e_v, m_hat, alpha_hat, g.k_phi, g.k_v)
-        dm, da = adaptation_rates(e_v, vdot_d, g.k_m, g.k_alpha)
-        return ControlEval(u, dm, da, v_d, vdot_d, e_v)
+        # saturate_velocity, navigation_input and adaptation_rates on Python floats (the hot path)
+        if math.isfinite(self.v_max):
+            w = 1.0 / (self.v_max * self.v_max)
+            q = 1.0 + w * (v0 * v0 + v1 * v1)
+            cq = 1.0 / math.sqrt(q)
+            dot = w * (v0 * a0 + v1 * a1) / q
+            v0, v1, a0, a1 = cq * v0, cq * v1, cq * (a0 - v0 * dot), cq * (a1 - v1 * dot)
+        x0, x1 = np.asarray(xdot, dtype=float).tolist()
+        e0, e1 = x0 - v0, x1 - v1
+        (j00, j01), (j10, j11) = J.tolist()
+        g0, g1 = grad.tolist()
+        damp = g.k_v + 1.5 * alpha_hat
+        u = np.array([-g.k_phi * (j00 * g0 + j10 * g1) + m_hat * a0 - damp * e0,
+                      -g.k_phi * (j01 * g0 + j11 * g1) + m_hat * a1 - damp * e1])
+        dm = -g.k_m * (e0 * a0 + e1 * a1)
+        da = g.k_alpha * (e0 * e0 + e1 * e1)
+        return ControlEval(u, dm, da, np.array([v0, v1]), np.array([a0, a1]), np.array([e0, e1]))
 
     def _fault(self, x: np.ndarray, xdot: np.ndarray, why: str) -> ControlEval:
         where = f"x = ({x[0]:.4f}, {x[1]:.4f}) {why}"

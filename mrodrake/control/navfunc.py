@@ -121,10 +121,11 @@ def phi_terms(chi: np.ndarray, goal: np.ndarray, bar: Barriers, k1: float,
     d = bar.sign * (diff[:, 0] * diff[:, 0] + diff[:, 1] * diff[:, 1] - bar.rho2)
     value = k1 * float(e @ e)
     grad = 2.0 * k1 * e
-    hess = np.diag([2.0 * k1, 2.0 * k1])
-    active = np.flatnonzero(d < bar.taus)
-    if len(active) == 0:
+    hess = np.array([[2.0 * k1, 0.0], [0.0, 2.0 * k1]])
+    near = d < bar.taus
+    if not near.any():
         return value, grad, hess
+    active = np.flatnonzero(near)
     d_act = d[active]
     scale = (math.sqrt(float(chi @ chi)) + bar.cnorm[active]) ** 2 + bar.rho2[active]
     if np.any(d_act <= POLE_ULPS * _EPS * scale):
@@ -197,13 +198,24 @@ def desired_velocity(pw_map, nf: NavigationFunction, x, xdot):
     With χ̇ = J ẋ, J̇ = Σ_i ∂J/∂x_i ẋ_i (the Hessians of H) and J v_d = −∇φ:
     v̇_d = −J⁻¹ (∇²φ χ̇ + J̇ v_d).  Returns (v_d, v̇_d, J_H, ∇φ, φ); φ = +∞ (NaN v_d) past a barrier's pole.
     """
-    x = np.asarray(x, dtype=float)
-    xdot = np.asarray(xdot, dtype=float)
-    chi, J, Hs = pw_map.evaluate(x)
+    chi, J, Hs = pw_map.evaluate(np.asarray(x, dtype=float))
     phi, g, G = nf.evaluate(chi)
-    (a, b), (c, d) = J
-    J_inv = np.array([[d, -b], [-c, a]]) / (a * d - b * c)
-    v_d = -(J_inv @ g)
-    Jdot = Hs @ xdot  # Jdot[k, i] = Σ_j ∂²H_k/∂x_i∂x_j ẋ_j
-    vdot_d = -(J_inv @ (G @ (J @ xdot) + Jdot @ v_d))
-    return v_d, vdot_d, J, g, phi
+    # 2 x 2 algebra on Python floats (this is the control law's hot path; numpy's per-call overhead on
+    # arrays of two elements was ~1/3 of the law's cost beyond the map)
+    (a, b), (c, d) = J.tolist()
+    g0, g1 = g.tolist()
+    (G00, G01), (G10, G11) = G.tolist()
+    ((h000, h001), (h010, h011)), ((h100, h101), (h110, h111)) = Hs.tolist()
+    w0, w1 = np.asarray(xdot, dtype=float).tolist()
+    det = a * d - b * c
+    if det == 0.0:  # degenerate map: NaN velocities (the law reports a fault)
+        nan = np.full(2, np.nan)
+        return nan, nan.copy(), J, g, phi
+    v0 = -(d * g0 - b * g1) / det
+    v1 = -(a * g1 - c * g0) / det
+    c0 = a * w0 + b * w1  # χ̇ = J ẋ
+    c1 = c * w0 + d * w1
+    r0 = G00 * c0 + G01 * c1 + (h000 * w0 + h001 * w1) * v0 + (h010 * w0 + h011 * w1) * v1  # ∇²φ χ̇ + J̇ v_d
+    r1 = G10 * c0 + G11 * c1 + (h100 * w0 + h101 * w1) * v0 + (h110 * w0 + h111 * w1) * v1
+    vdot = np.array([-(d * r0 - b * r1) / det, -(a * r1 - c * r0) / det])
+    return np.array([v0, v1]), vdot, J, g, phi

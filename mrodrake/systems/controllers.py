@@ -34,16 +34,8 @@ from mrodrake.execution.commands import TaskCommand
 _ZERO = ControlEval(np.zeros(2), 0.0, 0.0, np.zeros(2), np.zeros(2), np.zeros(2))
 
 
-class _EpisodeBox:
-    """Holder for the episode the current estimates belong to (abstract state; None: idle)."""
-
-    __slots__ = ("episode",)
-
-    def __init__(self, episode):
-        self.episode = episode
-
-    def __deepcopy__(self, memo):
-        return _EpisodeBox(self.episode)
+#: Episode value of an idle controller (its numeric ``episode`` state; episodes count from 0).
+_IDLE = -1
 
 
 class _AdaptiveController(LeafSystem):
@@ -59,7 +51,8 @@ class _AdaptiveController(LeafSystem):
         self.state_port = self.DeclareVectorInputPort("state", 4)
         self._command = None if task is None else TaskCommand(task, 0)
         self.task_port = self.DeclareAbstractInputPort("task", AbstractValue.Make(self._command))
-        self._box_index = self.DeclareAbstractState(AbstractValue.Make(_EpisodeBox(None if task is None else 0)))
+        # numeric state (not abstract): the per-step update copies it in C++, not by a Python deepcopy
+        self._episode_index = self.DeclareDiscreteState([float(_IDLE if task is None else 0)])
         self._law = self.DeclareCacheEntry(
             "adaptive law",
             ValueProducer(allocate=lambda: AbstractValue.Make(_ZERO), calc=self._CalcLaw),
@@ -83,11 +76,10 @@ class _AdaptiveController(LeafSystem):
 
     def _ResetOnNewTask(self, context, state):
         cmd = self.command(context)
-        episode = None if cmd is None else cmd.episode
-        box = context.get_abstract_state(int(self._box_index)).get_value()
-        if episode == box.episode:
+        episode = _IDLE if cmd is None else int(cmd.episode)
+        if episode == context.get_discrete_state(int(self._episode_index)).GetAtIndex(0):
             return EventStatus.DidNothing()  # leaves the context (and its caches) untouched
-        state.get_mutable_abstract_state(int(self._box_index)).set_value(_EpisodeBox(episode))
+        state.get_mutable_discrete_state(int(self._episode_index)).SetAtIndex(0, float(episode))
         if cmd is not None:
             state.get_mutable_continuous_state().SetFromVector(list(cmd.task.gains.initial_estimates(self.bodies)))
         return EventStatus.Succeeded()
@@ -115,6 +107,9 @@ class _AdaptiveController(LeafSystem):
         return self._law.Eval(context).fault if self.active_task(context) is not None else ""
 
     def DoCalcTimeDerivatives(self, context, derivatives):
+        if self.command(context) is None:  # idle: frozen estimates, without going through the law's cache
+            derivatives.get_mutable_vector().SetZero()
+            return
         ev = self._law.Eval(context)
         derivatives.get_mutable_vector().SetFromVector([ev.m_hat_dot, ev.alpha_hat_dot])
 

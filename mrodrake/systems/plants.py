@@ -220,15 +220,15 @@ class CoupledPlant(_PointMassPlant):
 # ------------------------------------------------------------------------------------------ synced plants (missions)
 def _declare_sync(plant) -> None:
     plant.sync_port = plant.DeclareAbstractInputPort("sync", AbstractValue.Make(SyncCommand()))
-    plant._version_index = plant.DeclareAbstractState(AbstractValue.Make(-1))
+    plant._version_index = plant.DeclareDiscreteState([-1.0])  # numeric: cheap per-step copies
     plant.DeclarePerStepUnrestrictedUpdateEvent(plant._Sync)
 
 
 def _apply_sync(plant, context, state) -> None:
     cmd = plant.sync_port.Eval(context)
-    if cmd.version == context.get_abstract_state(int(plant._version_index)).get_value():
+    if cmd.version == context.get_discrete_state(int(plant._version_index)).GetAtIndex(0):
         return
-    state.get_mutable_abstract_state(int(plant._version_index)).set_value(int(cmd.version))
+    state.get_mutable_discrete_state(int(plant._version_index)).SetAtIndex(0, float(cmd.version))
     state.get_mutable_continuous_state().SetFromVector(np.concatenate([cmd.x, cmd.v]))
 
 

@@ -271,6 +271,34 @@ def test_vdot_d_is_the_time_derivative_along_the_motion(room_map, v_max):
         assert np.linalg.norm(ev.v_d) < v_max
 
 
+@pytest.mark.parametrize("v_max", [math.inf, 0.5])
+def test_task_evaluate_is_eqs_9_to_11_composed(room_map, v_max):
+    """The law's hot path (2 x 2 algebra on floats) equals eq. (9) (``desired_velocity``), σ
+    (``saturate_velocity``), eq. (10) (``navigation_input``) and eq. (11) (``adaptation_rates``) composed, up to
+    rounding: 1e-12 relative to the terms' magnitudes (a few operations of relative error ε each)."""
+    from mrodrake.control.navfunc import desired_velocity
+
+    gains = AdaptiveGains(k_phi=1.3, k_v=0.7, k_m=0.02, k_alpha=0.05)
+    task = make_task(room_map, v_max=v_max, gains=gains)
+    rng = np.random.default_rng(1)
+    pts = rng.uniform((0.5, 0.5), (19.5, 11.5), size=(200, 2))
+    pts = [p for p in pts if ROOM.buffer(-0.5).contains(Point(p))][:30]
+    for x in pts:
+        xdot, m_hat, alpha_hat = rng.normal(size=2), rng.uniform(0.1, 3.0), rng.uniform(0.0, 5.0)
+        ev = task.evaluate(x, xdot, m_hat, alpha_hat)
+        v_raw, vdot_raw, J, grad, _ = desired_velocity(task.pw_map, task.nf, x, xdot)
+        v_d, vdot_d = saturate_velocity(v_raw, vdot_raw, v_max)
+        e_v = xdot - v_d
+        u = navigation_input(J, grad, vdot_d, e_v, m_hat, alpha_hat, gains.k_phi, gains.k_v)
+        dm, da = adaptation_rates(e_v, vdot_d, gains.k_m, gains.k_alpha)
+        scale = 1.0 + np.abs(J.T @ grad).max() + m_hat * np.abs(vdot_d).max() + (1 + alpha_hat) * np.abs(e_v).max()
+        np.testing.assert_allclose(ev.v_d, v_d, rtol=0, atol=1e-12 * (1 + np.abs(v_d).max()))
+        np.testing.assert_allclose(ev.vdot_d, vdot_d, rtol=0, atol=1e-12 * (1 + np.abs(vdot_d).max()))
+        np.testing.assert_allclose(ev.u, u, rtol=0, atol=1e-12 * scale)
+        assert abs(ev.m_hat_dot - dm) <= 1e-12 * (1 + abs(dm))
+        assert abs(ev.alpha_hat_dot - da) <= 1e-12 * (1 + abs(da))
+
+
 def test_task_is_shared_not_copied_by_deepcopy(room_map):
     import copy
 
