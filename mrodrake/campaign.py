@@ -514,7 +514,7 @@ def base_row(task: MissionTask) -> dict:
         "sim_seconds": None, "plan_wall_seconds": None, "sim_wall_seconds": None, "wall_seconds": None,
         "cpu_seconds": None, "real_time_factor": None, "min_clearance": None, "min_clearance_entity": "",
         "min_gap": None,
-        "min_gap_pair": "", "max_speed": None, "max_speed_entity": "", "nan_seen": False, "note": "",
+        "min_gap_pair": "", "max_speed": None, "max_speed_entity": "", "nan_seen": False,
     }
 
 
@@ -552,7 +552,7 @@ def _record_log(row: dict, task: MissionTask, scenario: Scenario, log, stopped: 
 def execute(task: MissionTask) -> dict:
     """Plan and simulate one mission and return its row; never raises for a failing mission."""
     from mrodrake.planning.plan import plan_scenario
-    from mrodrake.run import placed_mission, resampler
+    from mrodrake.systems.mission import Mission
 
     t0, cpu0 = time.perf_counter(), time.process_time()
     row = base_row(task)
@@ -571,10 +571,7 @@ def execute(task: MissionTask) -> dict:
         stage = "mission"
         if task.inject == "raise":
             raise RuntimeError(f"injected failure (spec inject[{task.index}])")
-        resample = resampler(scenario, task.planner, seed, iterations=task.iterations, time_limit=limit)
-        plan, mission, note = placed_mission(scenario, plan, resample, suffix_cycles=task.suffix_cycles,
-                                             seed=task.layout_seed)
-        row["note"] = note
+        mission = Mission(scenario, plan, suffix_cycles=task.suffix_cycles, seed=task.layout_seed)
 
         def stop() -> None:
             stopped.set()

@@ -17,35 +17,10 @@ from collections.abc import Callable
 from pathlib import Path
 
 from mrodrake.errors import UserError
-from mrodrake.execution.placement import PlacementError
-from mrodrake.planning.plan import Plan, plan_scenario
+from mrodrake.planning.plan import plan_scenario
 from mrodrake.scenario import Scenario, load_scenario
 from mrodrake.systems.mission import Mission, MissionLog, load_plan
 from mrodrake.viz.outputs import OutputError, ensure_output_dir, write_mission
-
-
-def placed_mission(scenario: Scenario, plan: Plan, resample: Callable[[], Plan] | None,
-                   **mission_options) -> tuple[Plan, Mission, str]:
-    """(plan, its Mission, note).  A lasso that STyLuS* re-planned exactly (``plan.stats['replanned']``) can
-    need more room than the run's placement finds (case II: an optimum whose step 30 gathers all seven
-    entities in p3); then the mission of the lasso STyLuS* sampled, ``resample()`` (the same planner run
-    without re-planning), and a one-line note saying so.  Otherwise the PlacementError stands."""
-    try:
-        return plan, Mission(scenario, plan, **mission_options), ""
-    except PlacementError as exc:
-        if resample is None or not plan.stats.get("replanned"):
-            raise
-        alt = resample()
-        mission = Mission(scenario, alt, **mission_options)
-        return alt, mission, (f"note: the re-planned lasso (cost {plan.total_cost:.2f}) cannot be placed ({exc}); "
-                              f"executing the sampled lasso (cost {alt.total_cost:.2f})")
-
-
-def resampler(scenario: Scenario, planner: str, seed: int, **plan_options) -> Callable[[], Plan] | None:
-    """The ``resample`` of :func:`placed_mission` for a plan of ``planner`` (None for the exact planner)."""
-    if planner == "exact":
-        return None
-    return lambda: plan_scenario(scenario, planner, seed=seed, replan=False, **plan_options)
 
 
 def run_mission(scenario, plan=None, planner: str = "stylus", suffix_cycles: int = 1, seed: int = 0,
@@ -54,21 +29,17 @@ def run_mission(scenario, plan=None, planner: str = "stylus", suffix_cycles: int
     suffix cycles in one diagram, write the outputs to ``out_dir`` (if given) and return the log."""
     if not isinstance(scenario, Scenario):
         scenario = load_scenario(scenario)
-    resample = None
     if plan is None:
         plan = plan_scenario(scenario, planner, seed=None if planner == "exact" else seed)
-        resample = resampler(scenario, planner, seed)
     elif not hasattr(plan, "steps"):
         plan = load_plan(scenario, plan)
     if out_dir is not None:
         ensure_output_dir(out_dir, "out_dir")
-    plan, mission, _ = placed_mission(scenario, plan, resample, suffix_cycles=suffix_cycles, seed=seed,
-                                      **mission_options)
+    mission = Mission(scenario, plan, suffix_cycles=suffix_cycles, seed=seed, **mission_options)
     log = mission.run(progress)
     if out_dir is not None:
         write_mission(log, out_dir)
     return log
-
 
 
 def add_subparser(subparsers) -> argparse.ArgumentParser:
@@ -95,15 +66,11 @@ def run(args: argparse.Namespace) -> int:
     plan = load_plan(scenario, args.plan) if args.plan else None
     out = ensure_output_dir(Path(args.out) if args.out else Path("out") / scenario.name)
     t0 = time.perf_counter()
-    resample = None
     if plan is None:
         print(f"planning {scenario.name} with {args.planner} ...", file=sys.stderr)
         plan = plan_scenario(scenario, args.planner, seed=None if args.planner == "exact" else args.seed)
-        resample = resampler(scenario, args.planner, args.seed)
-    plan, mission, note = placed_mission(scenario, plan, resample, suffix_cycles=args.suffix_cycles, seed=args.seed)
-    if note:
-        print(note, file=sys.stderr)
     print(plan.summary(), file=sys.stderr)
+    mission = Mission(scenario, plan, suffix_cycles=args.suffix_cycles, seed=args.seed)
 
     from tqdm import tqdm
 

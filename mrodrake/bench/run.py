@@ -15,21 +15,17 @@ def run_mission_benchmark(stream=None, scenario_path=None, plan=None, suffix_cyc
     """Plan (STyLuS*, ``seed``) unless ``plan`` is given, simulate, print a table to ``stream``; returns the
     numbers as a dict."""
     from mrodrake.planning.plan import plan_scenario
-    from mrodrake.run import placed_mission, resampler
     from mrodrake.scenario import load_scenario
+    from mrodrake.systems.mission import Mission
 
     stream = stream or sys.stdout
     scenario = load_scenario(scenario_path or SCENARIO)
     t0 = time.perf_counter()
-    resample = None
     if plan is None:
         plan = plan_scenario(scenario, "stylus", seed=seed)
-        resample = resampler(scenario, "stylus", seed)
     t_plan = time.perf_counter() - t0
     t1 = time.perf_counter()
-    plan, mission, note = placed_mission(scenario, plan, resample, suffix_cycles=suffix_cycles, seed=seed)
-    if note:
-        print(note, file=stream)
+    mission = Mission(scenario, plan, suffix_cycles=suffix_cycles, seed=seed)
     t_build = time.perf_counter() - t1
     log = mission.run()
     steps = mission.simulator.get_num_steps_taken()

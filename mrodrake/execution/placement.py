@@ -13,15 +13,18 @@ entity ends:
   fix the rotation);
 * a navigation or a transport: the spot of the robot, or of the object with its team's covering radius;
 * *room* moves: when a grasp layout or an arrival finds no room, the parked free robots of that region are
-  placed again together with it, and move inside the region first.
+  placed again together with it (clear of the robots that dock next), and move inside the region first.
 
 Every spot is a P_s placement (:func:`mrodrake.packing.place`) in the region with the layout spacing to the
 other entities and the rim; ungrasped objects with a later transport occupy their future team's covering
 disk (reserved; the members that start beside it stand on their slots inside it); an arrival also leaves
 room for the largest set of entities the plan brings into that region while it stays (foresight, dropped in
-the order of the smallest first when it does not fit); spots
-keep ``radius + CONTROL_MARGIN`` to walls, obstacles and other regions (sampled boundary points are fixed
-disks), so that the point-world free space of a departure or an arrival contains them.  Every local motion
+the order of the smallest first when it does not fit).  A robot that stays docked to an object moves only
+with it, so an arriving team keeps such robots (its own members' slots included) out of the covering disk of
+every team that stands or forms around another object while they stay docked; when no spot does, an earlier
+arrival learns to keep the object in the way off it.  Spots keep ``radius + CONTROL_MARGIN`` to walls,
+obstacles and other regions (sampled boundary points are fixed disks), so that the point-world free space of
+a departure or an arrival contains them.  Every local motion
 (back-off, docking, room move) is checked for a straight-leg path inside its region
 (:func:`mrodrake.control.local.local_path`).  A geometry that cannot be realised raises
 :class:`PlacementError` naming the step and the region, before any simulation.
@@ -381,7 +384,7 @@ class _Placer:
         free = [i for i in range(self.N) if w.where[i] == k and w.grasp[i] < 0 and i not in protect]
         if not free:
             return None
-        cs, rs, _ = self.units(w, k, step, set(free) | protect)
+        cs, rs, _ = self.units(w, k, step, set(free))
         cs = list(cs) + [c for c, _ in keep_out]
         rs = list(rs) + [r for _, r in keep_out]
         for attempt in range(SEEDS):
@@ -580,7 +583,7 @@ class _Placer:
             need = cover + rx + self.spacing
             if math.hypot(*(w.pos[ex] - xo)) < need:
                 later, other = (ex, e) if w.placed[ex] >= w.placed[e] else (e, ex)
-                self._hint(w, later, w.pos[other], need)
+                self._hint(w, later, [(w.pos[other], need)])
         raise PlacementError(f"{self.where_msg(spec, k)}: no free grasp layout for "
                              f"{'+'.join(ts.robot_names[i] for i in team)} around {ts.object_names[j]}")
 
@@ -661,11 +664,17 @@ class _Placer:
         keep_clear = self._separations(w, k, step, a) if isinstance(a, Transport) else []
         keep_clear += self.hints.get((e, step), [])
         future = self.future_units(w, step, k, e)
+        docked = self._docked_separations(w, k, step, a) if isinstance(a, Transport) else []
         spot, ops = None, []
-        for fut in ((future, future[:1], ()) if future else ((),)):
-            spot = self.spot(k, r, cs, rs, keep_clear, fut)
+        for extra in ([(c, d) for _, c, d in docked], []) if docked else ([],):
+            for fut in ((future, future[:1], ()) if future else ((),)):
+                spot = self.spot(k, r, cs, rs, keep_clear + extra, fut)
+                if spot is not None:
+                    break
             if spot is not None:
                 break
+            if extra:  # a docked robot would be in a later team's way: learn where earlier arrivals go
+                self._learn_from_arrival(w, k, r, cs, rs, es, keep_clear, docked)
         if spot is None:
             found = self._move_teams(w, step, k, movers, r, cs, keep_clear)
             if found is not None:
@@ -690,29 +699,37 @@ class _Placer:
             w.where[m] = k
         return ops + [PlacedOp(kind, a, e, k, (float(spot[0]), float(spot[1])), rot, tuple(getattr(a, "team", ())))]
 
-    def _hint(self, w: _World, x: int, center, dist: float) -> None:
-        key = (x, w.placed[x])
-        known = self.hints.setdefault(key, [])
-        if any(np.allclose(c, center) and d >= dist for c, d in known) or len(known) >= 8:
-            return
-        known.append((np.array(center, dtype=float), float(dist)))
-        raise _Retry()
+    def _hint(self, w: _World, x: int, items: Sequence[tuple[np.ndarray, float]]) -> None:
+        """Learn (centre, distance) pairs for the arrival that put entity x where it is; raises _Retry when
+        one of them is new (at most 8 per arrival)."""
+        known = self.hints.setdefault((x, w.placed[x]), [])
+        new = False
+        for center, dist in items:
+            if any(np.allclose(c, center) and d >= dist for c, d in known) or len(known) >= 8:
+                continue
+            known.append((np.array(center, dtype=float), float(dist)))
+            new = True
+        if new:
+            raise _Retry()
 
-    def _learn_from_arrival(self, w: _World, k: int, r: float, cs, rs, es, keep_clear) -> None:
-        """An arrival found no room: if it would fit without one ungrasped object that an earlier arrival
-        put there, that arrival must keep the object off the spot found (a hint), and the run is placed
-        again (raises _Retry); otherwise nothing is learned."""
+    def _learn_from_arrival(self, w: _World, k: int, r: float, cs, rs, es, keep_clear,
+                            docked: Sequence[tuple[int, np.ndarray, float]] = ()) -> None:
+        """An arrival found no room (with the ``docked`` constraints of :meth:`_docked_separations`): if it
+        would fit without one ungrasped object that an earlier arrival put there, that arrival must keep the
+        object off the spot found and off the docked robots' slots there (hints), and the run is placed again
+        (raises _Retry); otherwise nothing is learned."""
         for x in es:
             if x < self.N or w.team_of(x - self.N):
                 continue
             keep = [(c, d) for c, d in keep_clear if not np.allclose(c, w.pos[x])]
+            keep += [(c, d) for y, c, d in docked if y != x]
             rest = [(c, q) for c, q, y in zip(cs, rs, es) if y != x]
             p = self.spot(k, r, [c for c, _ in rest], [q for _, q in rest], keep)
             if p is None:
                 continue
             need = max([d for c, d in keep_clear if np.allclose(c, w.pos[x])] +
                        [r + float(rs[es.index(x)]) + self.spacing])
-            self._hint(w, x, p, need)
+            self._hint(w, x, [(p, need)] + [(p + w.pos[x] - c, d) for y, c, d in docked if y == x])
 
     def _leaves_by(self, e: int, step: int, last: float) -> bool:
         """Does entity e leave its region in a step from ``step`` up to ``last`` (exclusive)?"""
@@ -759,6 +776,60 @@ class _Placer:
                 need = max(need, self.ts.covering_radius(a.obj, nxt_a) + float(self.radii[e]) + sp)
             if need > 0.0:
                 out.append((w.pos[e], need))
+        return out
+
+    def _undocked(self, i: int, j: int, step: int) -> float:
+        """First executed step after ``step`` at which robot i, docked to object j, leaves its slot: its
+        release of j or j's next transport (inf: never)."""
+        for n in range(step + 1, len(self.steps)):
+            for b in self.steps[n].actions:
+                if isinstance(b, (Release, Transport)) and b.obj == j and getattr(b, "robot", i) == i:
+                    return n
+        return math.inf
+
+    def _team_forms(self, j: int, step: int) -> tuple[tuple[int, ...] | None, float]:
+        """(team, step) of object j's next transport after executed step ``step``: its team and the executed
+        step from which its covering disk stands (its first grasp after ``step``, or ``step`` when no robot
+        joins before it leaves); (None, inf) if j is not carried on."""
+        team, leave = self.next_team(j, step + 1), self._next_transport(j, step)
+        if team is None:
+            return None, math.inf
+        g = self.first_grasp(j, step + 1)
+        return team, (g if g <= leave else step)
+
+    def _docked_separations(self, w: _World, k: int, step: int,
+                            a: Transport) -> list[tuple[int, np.ndarray, float]]:
+        """(entity, centre, distance) the arriving object must keep for robots that stay docked in region k,
+        which move only with their object: the covering disk of a team of another object X (standing now, or
+        forming while the robot is still docked) must keep out the body of a docked robot not in that team.
+        For a member of the arriving team the constraint is on its slot, the object's spot plus the member's
+        rigid offset, so its centre is shifted by that offset; ``entity`` is X for these, the docked robot for
+        the arriving object's own next team."""
+        sp, N = self.spacing, self.N
+        out = []
+        for i in a.team:
+            until, ri = self._undocked(i, a.obj, step), float(self.radii[i])
+            offset = w.pos[i] - w.pos[N + a.obj]
+            for j in range(self.M):
+                if j == a.obj or w.where[N + j] != k:
+                    continue
+                covers = []
+                team = w.team_of(j)
+                if team and i not in team:
+                    covers.append(self.ts.covering_radius(j, team))
+                nxt, forms = self._team_forms(j, step)
+                if nxt and i not in nxt and forms < until:
+                    covers.append(self.ts.covering_radius(j, nxt))
+                if covers:
+                    out.append((N + j, w.pos[N + j] - offset, max(covers) + ri + sp))
+        nxt, forms = self._team_forms(a.obj, step)
+        if nxt:
+            cover = self.ts.covering_radius(a.obj, nxt)
+            for i in range(N):
+                j = w.grasp[i]
+                if j < 0 or j == a.obj or w.where[i] != k or i in nxt or self._undocked(i, j, step) <= forms:
+                    continue
+                out.append((i, w.pos[i], cover + float(self.radii[i]) + sp))
         return out
 
     def _object_clear(self, a, spot: np.ndarray, keep_clear: list[tuple[np.ndarray, float]]) -> bool:

@@ -14,7 +14,8 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from mrodrake.execution.placement import OpKind, PlacementError, layout_slots, place_run
-from mrodrake.execution.steps import StepSpec
+from mrodrake.execution.steps import StepSpec, expand_steps
+from mrodrake.planning.plan import plan_scenario
 from mrodrake.scenario import load_scenario, scenario_from_dict
 from mrodrake.ts import Grasp, Release, TransitionSystem, Transport
 
@@ -188,3 +189,63 @@ def test_team_members_start_on_their_slots_in_a_region_the_team_fills(leaves_fir
         assert np.allclose(pos[1], slots[grasp.team.index(1)], atol=1e-9)
     for sp in pl.steps:
         check_configuration(ts, sp.step.dst, np.asarray(sp.positions))
+
+
+def _case2() -> TransitionSystem:
+    return TransitionSystem(load_scenario(ROOT / "scenarios" / "case_study_2.yaml"))
+
+
+def test_a_robot_left_docked_keeps_out_of_a_later_team_disk():
+    """Case II's optimum in small: r1+r2 carry o1 into p3 (radius 4 m), where o2 stands with r3+r4 docked and
+    o3 waits; r2, r3, r4 release and grasp o3 while r1 stays docked to o1, then carry o3 off.  r1 moves only
+    with o1 (its slot is fixed by the team's rotation, here east of o1), so o1's arrival must keep r1's slot
+    out of o3's team disk: |r1 - o3| >= 1.8 + 0.75 + 0.1 = 2.65 m (covering radius, r1's radius, spacing)."""
+    ts = _case2()
+    p1, p2, p3 = (ts.region_names.index(k) for k in ("p1", "p2", "p3"))
+    N = ts.N
+    run = [ts.make_state([p2, p2, p3, p3], [p2, p3, p3], [0, 0, 1, 1]),
+           ts.make_state([p3, p3, p3, p3], [p3, p3, p3], [0, 0, 1, 1]),
+           ts.make_state([p3, p3, p3, p3], [p3, p3, p3], [0, -1, -1, -1]),
+           ts.make_state([p3, p3, p3, p3], [p3, p3, p3], [0, 2, 2, 2]),
+           ts.make_state([p3, p1, p1, p1], [p3, p3, p1], [-1, 2, 2, 2])]
+    steps = _steps(ts, run)
+    c = {k: np.asarray(ts.scenario.regions[k].center) for k in (p2, p3)}
+    init = np.array([c[p2] + (1.05, 0.0), c[p2] - (1.05, 0.0), c[p3] + (-1.05, -2.15), c[p3] + (1.05, -2.15),
+                     c[p2], c[p3] + (0.0, -2.15), c[p3] + (2.15, 0.3)])
+    pl = place_run(ts, steps, initial=init)
+    pos = np.asarray(pl.steps[2].positions)
+    assert math.hypot(*(pos[0] - pos[N + 2])) >= ts.covering_radius(2, (1, 2, 3)) + 0.75 + ts.spacing - 1e-9
+    for sp in pl.steps:
+        check_configuration(ts, sp.step.dst, np.asarray(sp.positions))
+
+
+def test_room_moves_keep_clear_of_the_robots_about_to_dock():
+    """Four free robots and o1, o2 in p1; r1+r2 grasp o1 while r3 stands inside o1's team disk.  r3 moves
+    inside p1 first (a room move); its new spot must avoid r1 and r2 where they stand (they dock only after
+    the room moves), else no straight-leg path reaches it (the exact planner's case-II plan, step 24)."""
+    ts = _case2()
+    p1, p2, p3 = (ts.region_names.index(k) for k in ("p1", "p2", "p3"))
+    run = [ts.make_state([p1] * 4, [p1, p1, p3], [-1] * 4), ts.make_state([p1] * 4, [p1, p1, p3], [0, 0, -1, -1]),
+           ts.make_state([p2, p2, p1, p1], [p2, p1, p3], [0, 0, 1, 1])]
+    steps = _steps(ts, run)
+    c1, c3 = (np.asarray(ts.scenario.regions[k].center) for k in (p1, p3))
+    rel = np.array([[2.378, -2.141], [-0.112, -3.198], [-2.522, -1.97], [0.112, 3.198], [-2.148, 0.099], [2.15, 0.0]])
+    pl = place_run(ts, steps, initial=np.vstack([rel + c1, [c3]]))
+    kinds = [(op.kind, op.entity) for op in pl.steps[0].ops]
+    assert (OpKind.ROOM, 2) in kinds and kinds[-2:] == [(OpKind.GRASP, 0), (OpKind.GRASP, 1)]
+    for sp in pl.steps:
+        check_configuration(ts, sp.step.dst, np.asarray(sp.positions))
+
+
+@pytest.mark.slow
+def test_case_study_2_optimum_places():
+    """STyLuS* with re-planning reaches case II's optimum (seed 0), whose step 30 gathers all seven entities
+    in p3; the run is placed (layout seeds 0-2)."""
+    ts = _case2()
+    plan = plan_scenario(ts.scenario, "stylus", seed=0)
+    assert plan.stats.get("replanned") and plan.total_cost == pytest.approx(11080.84, abs=0.01)
+    steps = expand_steps(plan, 1)
+    for seed in range(3):
+        pl = place_run(ts, steps, seed=seed)
+        for sp in pl.steps:
+            check_configuration(ts, sp.step.dst, np.asarray(sp.positions))

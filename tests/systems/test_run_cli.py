@@ -3,16 +3,12 @@ failures inside the simulation end the mission cleanly with its logs (exit 1).""
 
 import json
 import re
-from dataclasses import replace
 from pathlib import Path
 
 import pandas as pd
-import pytest
 
 from mrodrake import cli
-from mrodrake import run as run_mod
 from mrodrake.control.adaptive import NavigationTask
-from mrodrake.execution.placement import PlacementError
 from mrodrake.planning.plan import plan_scenario
 from mrodrake.run import run_mission
 from mrodrake.scenario import load_scenario
@@ -111,28 +107,3 @@ def test_write_failure_keeps_what_it_can(tmp_path, capsys):
     err = capsys.readouterr().err.strip().splitlines()
     assert err[-1].startswith(f"error: could not write 1 output file(s) to {out}/ (events.csv: ")
     assert (out / "trajectory.csv").is_file() and (out / "replay.html").is_file()
-
-
-def test_a_replanned_lasso_without_placement_falls_back_to_the_sampled_one(monkeypatch):
-    """placed_mission: a PlacementError of STyLuS*'s re-planned lasso executes the sampled lasso, with a note;
-    the same error of any other plan stands."""
-    sc = load_scenario(ROOT / "scenarios" / "tiny.yaml")
-    sampled = plan_scenario(sc, "stylus", seed=0, replan=False)
-    optimum = replace(sampled, stats={**sampled.stats, "replanned": True})
-
-    class Built:
-        def __init__(self, scenario, plan, **kw):
-            if plan is optimum:
-                raise PlacementError("step 3 (plan step 3): region 'p1': no room")
-            self.plan = plan
-
-    monkeypatch.setattr(run_mod, "Mission", Built)
-    plan, mission, note = run_mod.placed_mission(sc, optimum, lambda: sampled, seed=0)
-    assert plan is sampled and mission.plan is sampled
-    assert note.startswith("note: the re-planned lasso") and "region 'p1': no room" in note
-    with pytest.raises(PlacementError):
-        run_mod.placed_mission(sc, optimum, None, seed=0)
-    unreplanned = replace(sampled, stats={**sampled.stats, "replanned": False})
-    monkeypatch.setattr(run_mod, "Mission", lambda *a, **k: (_ for _ in ()).throw(PlacementError("no room")))
-    with pytest.raises(PlacementError):
-        run_mod.placed_mission(sc, unreplanned, lambda: sampled, seed=0)
