@@ -14,8 +14,9 @@ end point comes from the plan-wide placement (:mod:`mrodrake.execution.placement
 adaptive law on the point-world map of the entity's free space, and the identity-map local law for docking,
 backing off, room moves, the last part of every navigation or transport inside the *approach disk* of the
 target region and, from a start nearer than :data:`EXIT_CLEARANCE` to another entity, its first part (exit legs
-inside the source region's approach disk) (:mod:`mrodrake.control.local`); the estimates carry over within one
-primitive (one episode).
+inside the source region's approach disk) (:mod:`mrodrake.control.local`); where the map of the whole free space
+does not resolve the entity's position or its goal, the point-world law runs on the maps of receding windows
+around the entity (:mod:`mrodrake.control.windows`); the estimates carry over within one primitive (one episode).
 
 Parking brake: an entity that is not moving has zero dynamics; at rest (speed below ``rest_speed``) its
 velocity is reset to zero (the paper's friction can be negative, so an uncontrolled entity would drift).
@@ -35,6 +36,14 @@ from mrodrake.control.adaptive import AdaptiveGains
 from mrodrake.control.freespace import DEFAULT_MARGIN, Disk, entity_free_space
 from mrodrake.control.local import PATH_CLEARANCE, clear_goal, disk_obstacles, exit_path, local_path, local_task
 from mrodrake.control.tasks import build_map, build_task, departure_point, inside_circle
+from mrodrake.control.windows import (
+    RESOLUTION,
+    STALL_SPEED,
+    WINDOW_SWITCH,
+    grid_path,
+    resolution,
+    window_free_space,
+)
 from mrodrake.errors import UserError
 from mrodrake.execution.commands import PrimitiveRecord, SyncCommand, TaskCommand
 from mrodrake.execution.monitor import WordMonitor, entity_regions, label_of
@@ -111,6 +120,8 @@ class Motion:
     extra: float = 0.0
     exiting: bool = False
     departed: bool = False
+    world: tuple = ()
+    waypoint: tuple | None = None
 
 
 @dataclass(frozen=True)
@@ -443,11 +454,57 @@ class Sequencer:
                     m = replace(m, legs=tuple(map(tuple, legs)), leg=0, extra=0.0, exiting=True, departed=True)
                     ed.tasks[m.controller] = TaskCommand(self._leg_task(X, m), m.episode)
                     return m
-            task = build_task(self.scenario, free, max(1, len(team)), label=f"{name} {m.kind.value}", pw_map=pw)
+        except (UserError, ValueError) as exc:
+            raise _Failure(f"{m.kind.value} of {name}: {str(exc).splitlines()[0]}") from None
+        m = replace(m, others=tuple(others), world=(free, pw), legs=None, leg=0, extra=0.0, exiting=False)
+        return self._map_task(ed, X, m, RESOLUTION)
+
+    def _map_task(self, ed: _Edit, X: np.ndarray, m: Motion, threshold: float) -> Motion:
+        """The point-world law from where the entity is: on the map of the whole motion (``m.world``) if it
+        resolves the entity's position and its goal (:func:`~mrodrake.control.windows.resolution` at least
+        ``threshold``), else on the map of the window around the entity toward its waypoint (the map of the
+        whole motion there when no window can be built)."""
+        free, pw = m.world
+        x = X[m.entity, :2].copy()
+        free = replace(free, start=x)
+        if np.min(resolution(pw, [x, m.goal])) < threshold:
+            windowed = self._window(ed, x, m, free)
+            if windowed is not None:
+                return windowed
+        name = self.entities[m.entity]
+        try:
+            task = build_task(self.scenario, free, max(1, len(m.team)), label=f"{name} {m.kind.value}", pw_map=pw)
         except (UserError, ValueError) as exc:
             raise _Failure(f"{m.kind.value} of {name}: {str(exc).splitlines()[0]}") from None
         ed.tasks[m.controller] = TaskCommand(task, m.episode)
-        return replace(m, task=task, free=free, others=tuple(others), legs=None, leg=0, extra=0.0, exiting=False)
+        return replace(m, task=task, free=free, waypoint=None)
+
+    def _window(self, ed: _Edit, x: np.ndarray, m: Motion, free) -> Motion | None:
+        """The law on the map of the window around ``x`` toward its waypoint (None: no window)."""
+        try:
+            window, pw = window_free_space(free, x, grid_path(free.polygon, x, m.goal))
+            task = build_task(self.scenario, window, max(1, len(m.team)),
+                              label=f"{self.entities[m.entity]} {m.kind.value} window", pw_map=pw)
+        except (UserError, ValueError):
+            return None
+        ed.tasks[m.controller] = TaskCommand(task, m.episode)
+        return replace(m, task=task, free=window, waypoint=tuple(map(float, window.goal)))
+
+    def _next_window(self, ed: _Edit, X: np.ndarray, m: Motion) -> Motion:
+        """Near the waypoint of its window a motion moves on to the next window (never back to the map of the
+        whole motion, which drove it into the unresolved part again: warehouse aisle 2, a navigation cycled
+        between both for 1 750 s); on the map of the whole motion it moves to a window when it is slower than
+        :data:`~mrodrake.control.windows.STALL_SPEED` where that map does not resolve its position."""
+        if m.kind not in (OpKind.NAVIGATE, OpKind.TRANSPORT) or m.legs is not None or not m.world:
+            return m
+        x = X[m.entity, :2]
+        if m.waypoint is None:
+            if math.hypot(*X[m.entity, 2:]) >= STALL_SPEED or resolution(m.world[1], [x])[0] >= RESOLUTION:
+                return m
+            return self._window(ed, x.copy(), m, replace(m.world[0], start=x.copy())) or replace(m, world=())
+        if math.hypot(*(x - np.asarray(m.waypoint))) > WINDOW_SWITCH or np.allclose(m.waypoint, m.goal):
+            return m
+        return self._window(ed, x.copy(), m, replace(m.world[0], start=x.copy())) or self._map_task(ed, X, m, 0.0)
 
     def _leg_task(self, X: np.ndarray, m: Motion):
         c, R, centers, radii = self._local_world(X, m.entity, m.radius, m.src if m.exiting else m.dst, m.team,
@@ -542,7 +599,7 @@ class Sequencer:
 
     def _wait(self, ed: _Edit, t: float, X: np.ndarray, a: Active) -> bool:
         """Progress the motion of ``a``; True once it has arrived (then parked and recorded)."""
-        m = self._next_leg(ed, X, self._settle(ed, X, a.motion))
+        m = self._next_leg(ed, X, self._settle(ed, X, self._next_window(ed, X, a.motion)))
         ed.active = replace(a, motion=m)
         if self._arrived(X, m):
             ed.tasks[m.controller] = None

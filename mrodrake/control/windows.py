@@ -1,0 +1,153 @@
+"""Receding windows: the point-world law where the map of the whole free space does not resolve the motion.
+
+The harmonic map H of a free space F is constant on each hole.  Along a channel of width w whose walls are
+holes, H flattens like exp(−π s / w) with the distance s from the channel's mouth: in a dead end whose walls
+are all one hole (warehouse aisle 3 closed by two robots parked in p6, merging both shelf rows into one hole:
+w = 3.5 m) σ_max(J_H) fell from 3e-2 at the mouth to 2e-10 31 m in, below the panel solution's rounding
+floor (σ_min ≈ 1e-12), and between two holes (a team in aisle 2, w = 1 m) the derivative along the channel
+vanishes the same way.  There v_d = −J_H⁻¹∇φ is either a crawl (0.01 m/s for 1 000 s: χ hardly changes along
+the channel) or, once ∇φ reaches the rounding floor too, a direction set by rounding: the entity chatters at
+2 m/s on the spot, the integrator's steps shrink to 1e-4 s and the mission never ends.
+
+Where H does not resolve the rest of the motion (:func:`resolution` below :data:`RESOLUTION` somewhere on a
+shortest path to the goal, :func:`grid_path`), the same law runs on the map of a *window*: the component of
+F ∩ B(x, :data:`WINDOW_RADIUS`) around the entity, whose holes cut by the window's rim become part of its
+outer boundary (H runs along them with arc length instead of being constant), toward the farthest point of the
+path inside the window (:func:`window_free_space`).  F ∩ B ⊂ F, so each window keeps the guarantees of the
+law on its own map (no collision, φ bounded); the motion moves on to the next window near each waypoint.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+import shapely
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import dijkstra
+from shapely.geometry import MultiPolygon, Point, Polygon
+
+from mrodrake.control.freespace import EntityFreeSpace
+from mrodrake.control.pointworld import PointWorldMap
+from mrodrake.control.tasks import build_map, inside_circle
+from mrodrake.geometry import DISK_QUAD_SEGS
+
+#: Smallest σ_min(J_H) × diameter of F at which H resolves the start or the goal of a motion (module
+#: docstring): 6e-10 at the start in aisle 3, 1e-6 at a goal 4.5 m inside aisle 2 for a team (crawl); at least
+#: 1.9e-2 on every shortest path between the regions of the office, lab, corridor, narrow and tiny maps.
+RESOLUTION = 1e-3
+#: Speed (m/s) under which the law on the map of the whole motion counts as stalled where that map does not
+#: resolve the entity's position (it then moves to a window): it crawled at 0.01-0.15 m/s for 300 s into aisle 2
+#: and chattered on the spot at the rounding floor, but crosses the middle of an aisle open at both ends
+#: (σ_min(J_H) × diameter down to 5e-7) at its 2 m/s bound.
+STALL_SPEED = 0.25
+#: Radius (m) of a window around the entity.
+WINDOW_RADIUS = 12.0
+#: Distance (m) a window's waypoint keeps inside the window's rim.
+WINDOW_MARGIN = 1.5
+#: Distance (m) to its waypoint at which a windowed motion moves on to the next window.
+WINDOW_SWITCH = 5.0
+#: Grid step (m) and clearances to ∂F (m, tried in turn) of :func:`grid_path`; resampling step (m).
+GRID_STEP = 0.25
+GRID_CLEARANCES = (1.0, 0.5, 0.2, 0.0)
+SAMPLE_STEP = 0.5
+
+
+def resolution(pw_map, points) -> np.ndarray:
+    """σ_min(J_H(p)) × the diameter of the map's free space at each of ``points`` (n, 2)."""
+    pts = np.asarray(points, dtype=float).reshape(-1, 2)
+    minx, miny, maxx, maxy = pw_map.free_space.bounds
+    J = np.asarray(pw_map.jacobian(pts), dtype=float).reshape(-1, 2, 2)
+    return np.linalg.svd(J, compute_uv=False)[:, -1] * math.hypot(maxx - minx, maxy - miny)
+
+
+def grid_path(poly: Polygon, start, goal, step: float = GRID_STEP,
+              clearances: tuple[float, ...] = GRID_CLEARANCES) -> np.ndarray:
+    """A shortest 8-connected grid path (spacing ``step``) from ``start`` to ``goal`` through the points of
+    ``poly`` at least the first of ``clearances`` from its boundary that connects them, start and goal
+    included: waypoints (k, 2).  Raises ValueError if the grid does not connect them."""
+    s = np.asarray(start, dtype=float).reshape(2)
+    g = np.asarray(goal, dtype=float).reshape(2)
+    for clear in clearances:
+        inner = poly.buffer(-clear) if clear > 0.0 else poly
+        if inner.is_empty:
+            continue
+        path = _grid_path(inner, s, g, step)
+        if path is not None:
+            return path
+    raise ValueError("grid path: the grid does not connect the start and the goal")
+
+
+def _grid_path(inner, s: np.ndarray, g: np.ndarray, step: float) -> np.ndarray | None:
+    minx, miny, maxx, maxy = inner.bounds
+    xs = np.arange(minx, maxx + step, step)
+    ys = np.arange(miny, maxy + step, step)
+    X, Y = np.meshgrid(xs, ys)
+    shapely.prepare(inner)
+    ok = shapely.contains_xy(inner, X, Y)
+    idx = -np.ones(ok.shape, dtype=int)
+    idx[ok] = np.arange(int(ok.sum()))
+    nodes = np.column_stack([X[ok], Y[ok]])
+    if len(nodes) < 2:
+        return None
+    rows, cols, w = [], [], []
+    ny, nx = ok.shape
+    for di, dj in ((0, 1), (1, 0), (1, 1), (1, -1)):
+        a = idx[max(0, -di):ny - max(0, di), max(0, -dj):nx - max(0, dj)]
+        b = idx[max(0, di):ny - max(0, -di) or None, max(0, dj):nx - max(0, -dj) or None]
+        both = (a >= 0) & (b >= 0)
+        a, b = a[both], b[both]
+        mid = 0.5 * (nodes[a] + nodes[b])
+        keep = shapely.contains_xy(inner, mid[:, 0], mid[:, 1])
+        rows.append(a[keep])
+        cols.append(b[keep])
+        w.append(np.full(int(keep.sum()), step * math.hypot(di, dj)))
+    rows, cols, w = np.concatenate(rows), np.concatenate(cols), np.concatenate(w)
+    graph = coo_matrix((w, (rows, cols)), shape=(len(nodes), len(nodes))).tocsr()
+    i_s = int(np.argmin(np.linalg.norm(nodes - s, axis=1)))
+    i_g = int(np.argmin(np.linalg.norm(nodes - g, axis=1)))
+    dist, pred = dijkstra(graph, directed=False, indices=i_g, return_predecessors=True)
+    if not np.isfinite(dist[i_s]):
+        return None
+    out, k = [s], i_s
+    while k != i_g:
+        k = int(pred[k])
+        out.append(nodes[k])
+    out.append(g)
+    return np.array(out)
+
+
+def resample(path, step: float = SAMPLE_STEP) -> np.ndarray:
+    """Points every ``step`` along the polyline ``path`` (its end points included)."""
+    p = np.asarray(path, dtype=float).reshape(-1, 2)
+    seg = np.linalg.norm(np.diff(p, axis=0), axis=1)
+    cum = np.concatenate([[0.0], np.cumsum(seg)])
+    if cum[-1] <= 0.0:
+        return p[:1]
+    s = np.append(np.arange(0.0, cum[-1], step), cum[-1])
+    return np.column_stack([np.interp(s, cum, p[:, 0]), np.interp(s, cum, p[:, 1])])
+
+
+def window_free_space(free: EntityFreeSpace, x, path, radius: float = WINDOW_RADIUS,
+                      margin: float = WINDOW_MARGIN) -> tuple[EntityFreeSpace, PointWorldMap]:
+    """The window around ``x`` (module docstring) and its map: the component of ``free.polygon`` ∩ B(x, radius)
+    containing x, with x as start and, as goal, the farthest point of ``path`` (from x to the goal) before it
+    first leaves B(x, radius − margin) (the goal itself if it does not) that maps inside the map's circle
+    barrier (a point near a convex corner of the window can map outside it).  Raises ValueError without one."""
+    x = np.asarray(x, dtype=float).reshape(2)
+    pts = resample(path, 0.5 * GRID_STEP)
+    out = np.flatnonzero(np.linalg.norm(pts - x, axis=1) > radius - margin)
+    cands = pts[1:] if not len(out) else pts[1:max(1, int(out[0]))]
+    part = free.polygon.intersection(Point(x).buffer(radius, quad_segs=DISK_QUAD_SEGS))
+    parts = list(part.geoms) if isinstance(part, MultiPolygon) else [part]
+    comp = next((p for p in parts if isinstance(p, Polygon) and p.contains(Point(x))), None)
+    if comp is None or not len(cands):
+        raise ValueError("window: no waypoint in the window's component around the entity")
+    comp = shapely.geometry.polygon.orient(comp, 1.0)
+    window = dataclasses.replace(free, polygon=comp, start=x, goal=cands[-1], hole_names=[[] for _ in comp.interiors])
+    pw = build_map(window)
+    ok = shapely.contains_xy(comp, cands[:, 0], cands[:, 1]) & inside_circle(pw, cands)
+    if not ok.any() or not inside_circle(pw, x)[0]:
+        raise ValueError("window: the entity or every waypoint maps outside the window map's circle barrier")
+    return dataclasses.replace(window, goal=cands[np.flatnonzero(ok)[-1]].copy()), pw

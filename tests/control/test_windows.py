@@ -1,0 +1,63 @@
+"""Receding windows (no Drake): where the point-world map of the whole free space flattens into the rounding
+floor (a dead-end aisle whose walls are all one hole), the map of a window around the entity resolves the
+motion and its ideal flow leaves the aisle, while the flow on the whole map goes nowhere."""
+
+from __future__ import annotations
+
+import numpy as np
+import shapely
+
+from mrodrake.control.freespace import Disk, entity_free_space
+from mrodrake.control.tasks import build_map, build_task
+from mrodrake.control.windows import RESOLUTION, grid_path, resolution, window_free_space
+from mrodrake.planning.generate import generate_scenario, load_map
+
+WAREHOUSE = load_map("warehouse")
+
+
+def _flow(task, x, seconds: float, dt: float = 0.25) -> np.ndarray:
+    """x after following the ideal flow ẋ = v_d of ``task`` for ``seconds`` (explicit Euler)."""
+    x = np.asarray(x, dtype=float)
+    for _ in range(int(seconds / dt)):
+        ev = task.evaluate(x, np.zeros(2), 0.5, 5.0)
+        x = x + dt * ev.v_d
+    return x
+
+
+def test_a_dead_end_aisle_runs_on_a_window_map():
+    """Issue-13 campaign, gen_warehouse_n3_m1_k3_s1-p0-l0-d0, "navigate r2 p6->p4" where the point-world law
+    starts: r1 and r3 parked in p6 merge shelf rows 3 and 4 into one hole, so aisle 3 west of them is a 31 m
+    dead end (3.5 m wide for r2) whose walls are all that hole; r2 chattered there at 2 m/s on the spot with
+    steps of 1e-4 s (RTF 0.1) until the time limit."""
+    sc = generate_scenario(3, 1, 3, 1, map=WAREHOUSE)
+    start, goal = np.array([43.0153, 32.3202]), np.array([45.2398, 18.0114])
+    others = [Disk("r1", (45.0118, 32.4472), 0.75), Disk("r3", (43.9728, 34.1527), 0.75),
+              Disk("o1", (44.0, 17.0), 0.31)]
+    free = entity_free_space(sc, 0.75, start, goal, "p6", "p4", others)
+    assert ["shelf_3", "shelf_4", "r1", "r3"] in free.hole_names
+    pw = build_map(free)
+    assert resolution(pw, [start])[0] < 1e-6 * RESOLUTION
+    whole = build_task(sc, free, pw_map=pw)
+    assert _flow(whole, start, 20.0)[0] > start[0] - 1.0  # rounding decides v_d: no progress along the aisle
+
+    path = grid_path(free.polygon, start, goal)
+    assert path[:, 0].min() < 12.0  # out of the aisle's west mouth
+    window, wpw = window_free_space(free, start, path)
+    assert window.polygon.difference(free.polygon).area < 1e-9
+    assert window.goal[0] < start[0] - 8.0  # the waypoint lies 8+ m west, along the aisle
+    assert resolution(wpw, [start, window.goal]).min() >= RESOLUTION
+    x = _flow(build_task(sc, window, pw_map=wpw), start, 60.0)
+    assert x[0] < start[0] - 3.0
+    assert shapely.contains_xy(free.polygon, x[0], x[1])
+
+
+def test_a_goal_inside_a_narrow_aisle_is_not_resolved():
+    """Issue-13 campaign, gen_warehouse_n3_m1_k3_s3-p0-l0-d0, "transport o1 by r1+r2+r3 p2->p5": the team
+    (covering radius 1.93 m) has 1 m of aisle 2 between shelf rows 2 and 3; its goal 4.5 m inside maps where
+    the whole map is flat along the aisle (the law crawled at 0.01 m/s for 1 000 s, then chattered)."""
+    sc = generate_scenario(3, 1, 3, 3, map=WAREHOUSE)
+    start, goal = np.array([30.0, 3.5]), np.array([16.45, 25.0])
+    free = entity_free_space(sc, 1.9254, start, goal, "p2", "p5")
+    pw = build_map(free)
+    res = resolution(pw, [start, goal, (30.0, 25.0)])
+    assert res[0] >= RESOLUTION and res[1] < 1e-2 * RESOLUTION and res[2] < 1e-6 * RESOLUTION
