@@ -25,6 +25,7 @@ velocity is reset to zero (the paper's friction can be negative, so an uncontrol
 from __future__ import annotations
 
 import math
+from collections import OrderedDict
 from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
 from enum import Enum
@@ -72,6 +73,8 @@ SETTLE_DEPTH = 0.05
 #: (case II seed 0, step 52: τ = 2.6e-10, 0.12 m gaps, u up to 2e4 N, integrator failure).  The same margin
 #: as to walls, obstacles and other regions (DEFAULT_MARGIN).
 EXIT_CLEARANCE = DEFAULT_MARGIN
+#: Point-world maps a sequencer keeps for reuse (:meth:`Sequencer._map`).
+MAP_CACHE = 4
 
 
 class Phase(Enum):
@@ -212,6 +215,7 @@ class Sequencer:
         self.rest_speed, self.dock_tol, self.goal_tol = float(rest_speed), float(dock_tol), float(goal_tol)
         self.time_limit = time_limit
         self.approach = self._approach_widths()
+        self._maps: OrderedDict = OrderedDict()
         self.controllers = ([f"nav_{r}" for r in self.robots]
                             + [self.team_name(j, t) + "_ctrl" for j, t in self.couplings])
         self.plants = self.entities + [self.team_name(j, t) for j, t in self.couplings]
@@ -445,7 +449,7 @@ class Sequencer:
         name = self.entities[entity]
         try:
             free = entity_free_space(self.scenario, radius, start, goal, src, dst, others)
-            pw = build_map(free)
+            pw = self._map(free)
             if not m.departed and not inside_circle(pw, start)[0]:
                 c, R, centers, radii = self._local_world(X, entity, radius, src, team)
                 point = departure_point(pw, free, centers, radii, c, R, self.dock_tol)
@@ -505,6 +509,18 @@ class Sequencer:
         if math.hypot(*(x - np.asarray(m.waypoint))) > WINDOW_SWITCH or np.allclose(m.waypoint, m.goal):
             return m
         return self._window(ed, x.copy(), m, replace(m.world[0], start=x.copy())) or self._map_task(ed, X, m, 0.0)
+
+    def _map(self, free):
+        """The point-world map of ``free`` (memoised over the last :data:`MAP_CACHE` free spaces: a departure
+        restarts the law in the same free space, whose map then need not be solved again)."""
+        key = free.polygon.wkb
+        pw = self._maps.get(key)
+        if pw is None:
+            pw = build_map(free)
+            self._maps[key] = pw
+            while len(self._maps) > MAP_CACHE:
+                self._maps.popitem(last=False)
+        return pw
 
     def _leg_task(self, X: np.ndarray, m: Motion):
         c, R, centers, radii = self._local_world(X, m.entity, m.radius, m.src if m.exiting else m.dst, m.team,
