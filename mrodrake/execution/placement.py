@@ -661,7 +661,8 @@ class _Placer:
         for m in movers:
             w.where[m] = -1  # departed
         cs, rs, es = self.units(w, k, step, movers, self.occupied_until(e, step))
-        keep_clear = self._separations(w, k, step, a) if isinstance(a, Transport) else []
+        keep_clear = (self._separations(w, k, step, a) if isinstance(a, Transport)
+                      else self._departures(w, k, step, e, spec.actions.index(a)))
         keep_clear += self.hints.get((e, step), [])
         future = self.future_units(w, step, k, e)
         docked = self._docked_separations(w, k, step, a) if isinstance(a, Transport) else []
@@ -776,6 +777,37 @@ class _Placer:
                 need = max(need, self.ts.covering_radius(a.obj, nxt_a) + float(self.radii[e]) + sp)
             if need > 0.0:
                 out.append((w.pos[e], need))
+        return out
+
+    def _acts_at(self, i: int, step: int) -> tuple[float, int]:
+        """(executed step, position) of robot i's next action after ``step``; a grasp or release counts as
+        position −1, since within a step they run before the region-changing actions ((inf, 0): none)."""
+        for n in range(step + 1, len(self.steps)):
+            for pos, b in enumerate(self.steps[n].actions):
+                if isinstance(b, (Grasp, Release)) and b.robot == i:
+                    return n, -1
+                if (isinstance(b, Navigate) and b.robot == i) or (isinstance(b, Transport) and i in b.team):
+                    return n, pos
+        return math.inf, 0
+
+    def _departures(self, w: _World, k: int, step: int, i: int, after: int) -> list[tuple[np.ndarray, float]]:
+        """(centre, distance) robot i arriving in region k (action ``after`` of executed step ``step``) must keep
+        from every object there whose team carries it out of k while i still stands at its arrival spot
+        (before i's next action, in execution order): that transport starts as a disk of the team's covering
+        radius in the controllers' free space, which must be clear of i's body (gen_n4_m2_k3_s2: r2 parked
+        1.93 m from o2, inside the 1.92 m covering disk of r1's team, which then could not leave before r2)."""
+        sp, N = self.spacing, self.N
+        until = self._acts_at(i, step)
+        out = []
+        for j in range(self.M):
+            if w.where[N + j] != k:
+                continue
+            leave = next(((n, pos, b) for n in range(step, len(self.steps))
+                          for pos, b in enumerate(self.steps[n].actions)
+                          if isinstance(b, Transport) and b.obj == j and (n > step or pos > after)), None)
+            if leave is not None and i not in leave[2].team and leave[:2] < until:
+                cover = self.ts.covering_radius(j, tuple(leave[2].team))
+                out.append((w.pos[N + j], cover + float(self.radii[i]) + sp))
         return out
 
     def _undocked(self, i: int, j: int, step: int) -> float:

@@ -52,6 +52,8 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from threadpoolctl import threadpool_limits
+
 from mrodrake.errors import NoPlanFound, UserError
 from mrodrake.logic.ltl import Formula, atoms, parse
 from mrodrake.logic.nba import NBA
@@ -368,8 +370,14 @@ def plan_scenario(scenario, planner: str = "stylus", seed: int | None = None, it
     tries to prove the task unsatisfiable (relaxations; the exact search when the product is small, whose
     plan is returned if STyLuS* finds none).  Unsatisfiable tasks and objects no team can move raise a
     one-line UserError; a budget that runs out undecided raises NoPlanFound (a UserError).  ``replan=False``:
-    STyLuS* without the exact re-planning of its best lassos (the sampled lasso).
+    STyLuS* without the exact re-planning of its best lassos (the sampled lasso).  BLAS runs single-threaded
+    meanwhile (as in :meth:`~mrodrake.systems.mission.Mission.run`): the plan does not depend on the core count.
     """
+    with threadpool_limits(limits=1, user_api="blas"):
+        return _plan_scenario(scenario, planner, seed, iterations, time_limit, progress, replan)
+
+
+def _plan_scenario(scenario, planner, seed, iterations, time_limit, progress, replan) -> Plan:
     if not isinstance(scenario, Scenario):
         scenario = load_scenario(scenario)
     _check_budget(planner, iterations, time_limit)

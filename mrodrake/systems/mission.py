@@ -169,7 +169,8 @@ class Mission:
         self.ts = plan.ts if plan.ts is not None else TransitionSystem(scenario)
         self.formula, self.nba, self.words = task_words(scenario, self.ts)
         t0 = time.perf_counter()
-        self.placement = place_run(self.ts, expand_steps(plan, suffix_cycles), seed=self.seed)
+        with threadpool_limits(limits=1, user_api="blas"):  # as in run(): the same layout on every core count
+            self.placement = place_run(self.ts, expand_steps(plan, suffix_cycles), seed=self.seed)
         self.placement_seconds = time.perf_counter() - t0
         kw = {} if rest_speed is None else {"rest_speed": rest_speed}
         self.sequencer = Sequencer(scenario, self.ts, self.words, self.placement, couplings_of(plan), **kw)

@@ -57,6 +57,28 @@ def check_configuration(ts: TransitionSystem, state: tuple, pos: np.ndarray) -> 
             assert gap >= min(need, sc.layout.spacing) - 1e-6, (a, b, gap)
 
 
+def blocked_departures(ts: TransitionSystem, pl) -> list[tuple[int, int, int, float]]:
+    """(step, object entity, other entity, gap) for every transport whose covering disk, at its start (the
+    placed ops replayed in execution order), overlaps the body of an entity outside its team: the controllers'
+    free space of that transport would not contain its start."""
+    radii = np.array(ts.robot_radius + ts.object_radius, dtype=float)
+    pos = np.array(pl.initial, dtype=float)
+    bad = []
+    for sp in pl.steps:
+        for op in sp.ops:
+            e, team = op.entity, list(op.team)
+            if op.kind is OpKind.TRANSPORT:
+                cover = ts.covering_radius(e - ts.N, tuple(team))
+                for x in set(range(len(pos))) - {e, *team}:
+                    gap = math.hypot(*(pos[x] - pos[e])) - cover - radii[x]
+                    if gap < -1e-9:
+                        bad.append((sp.step.index, e, x, gap))
+            if team:
+                pos[team] = np.asarray(op.goal) + (pos[team] - pos[e])
+            pos[e] = op.goal
+    return bad
+
+
 @settings(max_examples=12, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(st.integers(0, 10**6))
 def test_random_runs_place_valid_configurations(case1, seed):
@@ -83,6 +105,7 @@ def test_random_runs_place_valid_configurations(case1, seed):
         # the ops are the step's actions in the plan's order, grasps and releases first
         acts = [op.action for op in sp.ops if op.kind is not OpKind.ROOM]
         assert sorted(map(repr, acts)) == sorted(map(repr, sp.step.actions))
+    assert blocked_departures(ts, pl) == []
 
 
 def test_teams_move_rigidly_and_release_clear_of_the_object(case1):
@@ -249,3 +272,37 @@ def test_case_study_2_optimum_places():
         pl = place_run(ts, steps, seed=seed)
         for sp in pl.steps:
             check_configuration(ts, sp.step.dst, np.asarray(sp.positions))
+
+
+GEN_N4_M2_K3_S2 = """
+name: regression
+scenarios:
+  - generate: {robots: [4], objects: [2], regions: [3], seeds: {start: 2, count: 1}}
+randomize:
+  seed: 13
+  robot_mass: [0.5, 2.0]
+  object_mass: [0.5, 2.0]
+  friction_scale: [0.0, 2.0]
+  friction_frequency: [0.4, 2.0]
+  initial_positions: true
+"""
+
+
+def test_a_robot_keeps_out_of_the_covering_disk_of_a_team_that_leaves_before_it(tmp_path):
+    """Campaign mission gen_n4_m2_k3_s2 (randomized, layout seed of the campaign, single-threaded BLAS as in
+    Mission): step 5 brings r1+o2 and then r2 into p3, step 6 carries o2 back before r2 leaves.  r2 was placed
+    1.93 m from o2, inside the team's covering disk (1.92 m + r2's 0.75 m), and the transport could not start
+    ("start not in the free space").  Every transport's covering disk must be clear at its start."""
+    from threadpoolctl import threadpool_limits
+
+    from mrodrake.campaign import load_campaign, randomized_scenario
+
+    spec = tmp_path / "spec.yaml"
+    spec.write_text(GEN_N4_M2_K3_S2)
+    task = load_campaign(spec).tasks[0]
+    assert task.mission_id == "gen_n4_m2_k3_s2-p0-l0-d0"
+    sc = randomized_scenario(task.instance.scenario, task.params)
+    with threadpool_limits(limits=1, user_api="blas"):
+        plan = plan_scenario(sc, seed=task.plan_seed, time_limit=60)
+        pl = place_run(plan.ts, expand_steps(plan, 1), seed=task.layout_seed)
+    assert blocked_departures(plan.ts, pl) == []
