@@ -22,9 +22,10 @@ room for the largest set of entities the plan brings into that region while it s
 the order of the smallest first when it does not fit).  A robot that stays docked to an object moves only
 with it, so an arriving team keeps such robots (its own members' slots included) out of the covering disk of
 every team that stands or forms around another object while they stay docked; when no spot does, an earlier
-arrival learns to keep the object in the way off it.  Spots keep ``radius + CONTROL_MARGIN`` to walls,
-obstacles and other regions (sampled boundary points are fixed disks), so that the point-world free space of
-a departure or an arrival contains them.  Every local motion
+arrival learns to keep the object in the way off it.  A robot arriving where a team stands keeps out of that
+team's covering disk if the team leaves before the robot acts again (in execution order).  Spots keep
+``radius + CONTROL_MARGIN`` to walls, obstacles and other regions (sampled boundary points are fixed disks), so
+that the point-world free space of a departure or an arrival contains them.  Every local motion
 (back-off, docking, room move) is checked for a straight-leg path inside its region
 (:func:`mrodrake.control.local.local_path`).  A geometry that cannot be realised raises
 :class:`PlacementError` naming the step and the region, before any simulation.
