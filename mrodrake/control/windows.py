@@ -42,6 +42,11 @@ RESOLUTION = 1e-3
 #: and chattered on the spot at the rounding floor, but crosses the middle of an aisle open at both ends
 #: (σ_min(J_H) × diameter down to 5e-7) at its 2 m/s bound.
 STALL_SPEED = 0.25
+#: σ_min(J_H) × diameter below which the law leaves the map of the whole motion for a window at any speed:
+#: above the panel solution's rounding floor (~1e-12) and below the 5e-7 of an aisle crossed at full speed.
+#: Warehouse mission n3 s3 (randomized), navigate r1 p2->p5: at every tick its point was resolved or it moved at
+#: 0.25 m/s or more, until det J_H = 0 (2e-14 at the fault) ended the mission; with the floor it finishes.
+RESOLUTION_FLOOR = 1e-8
 #: Radius (m) of a window around the entity.
 WINDOW_RADIUS = 12.0
 #: Distance (m) a window's waypoint keeps inside the window's rim.

@@ -39,6 +39,7 @@ from mrodrake.control.local import PATH_CLEARANCE, clear_goal, disk_obstacles, e
 from mrodrake.control.tasks import build_map, build_task, departure_point, inside_circle
 from mrodrake.control.windows import (
     RESOLUTION,
+    RESOLUTION_FLOOR,
     STALL_SPEED,
     WINDOW_SWITCH,
     grid_path,
@@ -498,12 +499,14 @@ class Sequencer:
         """Near the waypoint of its window a motion moves on to the next window (never back to the map of the
         whole motion, which drove it into the unresolved part again: warehouse aisle 2, a navigation cycled
         between both for 1 750 s); on the map of the whole motion it moves to a window when it is slower than
-        :data:`~mrodrake.control.windows.STALL_SPEED` where that map does not resolve its position."""
+        :data:`~mrodrake.control.windows.STALL_SPEED` where that map does not resolve its position, or at any
+        speed where the resolution falls below :data:`~mrodrake.control.windows.RESOLUTION_FLOOR`."""
         if m.kind not in (OpKind.NAVIGATE, OpKind.TRANSPORT) or m.legs is not None or not m.world:
             return m
         x = X[m.entity, :2]
         if m.waypoint is None:
-            if math.hypot(*X[m.entity, 2:]) >= STALL_SPEED or resolution(m.world[1], [x])[0] >= RESOLUTION:
+            res = resolution(m.world[1], [x])[0]
+            if res >= RESOLUTION or (math.hypot(*X[m.entity, 2:]) >= STALL_SPEED and res >= RESOLUTION_FLOOR):
                 return m
             return self._window(ed, x.copy(), m, replace(m.world[0], start=x.copy())) or replace(m, world=())
         if math.hypot(*(x - np.asarray(m.waypoint))) > WINDOW_SWITCH or np.allclose(m.waypoint, m.goal):
