@@ -130,10 +130,19 @@ def saturate_velocity(v: np.ndarray, vdot: np.ndarray, v_max: float) -> tuple[np
     """(σ(v), Dσ(v) v̇) with σ(v) = v / sqrt(1 + ‖v‖²/v_max²) (module docstring); identity for v_max = inf."""
     if not math.isfinite(v_max):
         return v, vdot
+    v0, v1, a0, a1 = _saturate(*np.asarray(v, dtype=float).tolist(), *np.asarray(vdot, dtype=float).tolist(), v_max)
+    return np.array([v0, v1]), np.array([a0, a1])
+
+
+def _saturate(v0: float, v1: float, a0: float, a1: float, v_max: float) -> tuple[float, float, float, float]:
+    """:func:`saturate_velocity` on the components (σ(v), Dσ(v) v̇) of v = (v0, v1), v̇ = (a0, a1)."""
+    if not math.isfinite(v_max):
+        return v0, v1, a0, a1
     w = 1.0 / (v_max * v_max)
-    q = 1.0 + w * float(v @ v)
+    q = 1.0 + w * (v0 * v0 + v1 * v1)
     c = 1.0 / math.sqrt(q)
-    return c * v, c * (vdot - v * (w * float(v @ vdot) / q))
+    dot = w * (v0 * a0 + v1 * a1) / q
+    return c * v0, c * v1, c * (a0 - v0 * dot), c * (a1 - v1 * dot)
 
 
 def load_sharing(cf: Sequence[float] | int) -> np.ndarray:
@@ -323,13 +332,8 @@ class NavigationTask:
         if not (math.isfinite(v0) and math.isfinite(v1) and math.isfinite(a0) and math.isfinite(a1)):
             return self._fault(x, xdot, f"is where the point-world map is degenerate "
                                   f"(det J_H = {np.linalg.det(J):.3g}): the entity left the region the map resolves")
-        # saturate_velocity, navigation_input and adaptation_rates on Python floats (the hot path)
-        if math.isfinite(self.v_max):
-            w = 1.0 / (self.v_max * self.v_max)
-            q = 1.0 + w * (v0 * v0 + v1 * v1)
-            cq = 1.0 / math.sqrt(q)
-            dot = w * (v0 * a0 + v1 * a1) / q
-            v0, v1, a0, a1 = cq * v0, cq * v1, cq * (a0 - v0 * dot), cq * (a1 - v1 * dot)
+        # σ, navigation_input and adaptation_rates on Python floats (the hot path)
+        v0, v1, a0, a1 = _saturate(v0, v1, a0, a1, self.v_max)
         x0, x1 = np.asarray(xdot, dtype=float).tolist()
         e0, e1 = x0 - v0, x1 - v1
         (j00, j01), (j10, j11) = J.tolist()
