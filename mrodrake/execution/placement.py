@@ -22,8 +22,9 @@ room for the largest set of entities the plan brings into that region while it s
 the order of the smallest first when it does not fit).  A robot that stays docked to an object moves only
 with it, so an arriving team keeps such robots (its own members' slots included) out of the covering disk of
 every team that stands or forms around another object while they stay docked; when no spot does, an earlier
-arrival learns to keep the object in the way off it.  A robot arriving where a team stands keeps out of that
-team's covering disk if the team leaves before the robot acts again (in execution order).  Spots keep
+arrival learns to keep the object in the way off it.  A robot arriving, or backing off after a release, where
+a team stands keeps out of that team's covering disk if the team leaves before the robot acts again (in
+execution order).  Spots keep
 ``radius + CONTROL_MARGIN`` to walls, obstacles and other regions (sampled boundary points are fixed disks), so
 that the point-world free space of a departure or an arrival contains them.  Every local motion
 (back-off, docking, room move) is checked for a straight-leg path inside its region
@@ -436,14 +437,21 @@ class _Placer:
                              f"{self.ts.object_names[j]}")
 
     def _backoffs(self, w: _World, step: int, k: int, robots: list[int]) -> list | None:
+        """Back-off spots of ``robots`` (None: no room); each keeps out of the covering disk of every team that
+        carries an object out of region k while the robot stands there (:meth:`_departures`)."""
         saved_pos, saved_grasp = w.pos.copy(), list(w.grasp)
         out = []
         for i in robots:
             w.grasp[i] = -1
+            ri = float(self.radii[i])
             cs, rs, _ = self.units(w, k, step, {i})
-            p = self.spot(k, float(self.radii[i]), cs, rs, near=w.pos[i])
+            keep = self._departures(w, k, step, i, -1)
+            p = self.spot(k, ri, cs, rs, keep_clear=keep, near=w.pos[i])
             if p is None or not self.path_ok(w, i, k, p, set()):
-                sol = next((x for x in (self.place_in(k, [float(self.radii[i])], cs, rs, n) for n in range(SEEDS))
+                # the covering disks of the teams that leave while i stands there, as fixed disks of P_s
+                cs_k = list(cs) + [c for c, _ in keep]
+                rs_k = list(rs) + [d - ri - self.spacing for _, d in keep]
+                sol = next((x for x in (self.place_in(k, [ri], cs_k, rs_k, n) for n in range(SEEDS))
                             if x is not None and self.path_ok(w, i, k, x[0], set())), None)
                 if sol is None:
                     w.pos[:], w.grasp[:] = saved_pos, saved_grasp

@@ -306,3 +306,23 @@ def test_a_robot_keeps_out_of_the_covering_disk_of_a_team_that_leaves_before_it(
         plan = plan_scenario(sc, seed=task.plan_seed, time_limit=60)
         pl = place_run(plan.ts, expand_steps(plan, 1), seed=task.layout_seed)
     assert blocked_departures(plan.ts, pl) == []
+
+
+def test_a_released_robot_backs_off_out_of_the_disk_of_the_team_that_carries_on():
+    """Case II: r1, r2, r3 carry o1 from p2 into p3, r1 releases it, and r2 + r3 (power 7 >= 5) carry o1 to
+    p1 while r1 stays in p3.  Backing off next to its grasp point left r1 1.1-1.5 m inside the covering disk
+    of the two-robot team, whose transport then could not start; every layout seed now backs r1 off clear
+    of it."""
+    ts = _case2()
+    p1, p2, p3 = (ts.region_names.index(k) for k in ("p1", "p2", "p3"))
+    run = [ts.make_state([p2, p2, p2, p2], [p2, p1, p3], [-1] * 4),
+           ts.make_state([p2, p2, p2, p2], [p2, p1, p3], [0, 0, 0, -1]),
+           ts.make_state([p3, p3, p3, p2], [p3, p1, p3], [0, 0, 0, -1]),
+           ts.make_state([p3, p3, p3, p2], [p3, p1, p3], [-1, 0, 0, -1]),
+           ts.make_state([p3, p1, p1, p2], [p1, p1, p3], [-1, 0, 0, -1])]
+    steps = _steps(ts, run)
+    for seed in range(5):
+        pl = place_run(ts, steps, seed=seed)
+        assert blocked_departures(ts, pl) == []
+        for sp in pl.steps:
+            check_configuration(ts, sp.step.dst, np.asarray(sp.positions))
