@@ -38,9 +38,13 @@ import numpy as np
 from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import breadth_first_order
 
-from mrodrake.geometry import RegionGraph, grasp_layout, polygon
+from mrodrake.geometry import CONTROL_MARGIN, RegionGraph, grasp_layout, polygon
 from mrodrake.packing import entities_fit
 from mrodrake.scenario import Scenario
+
+#: Why a travel is blocked: free space is the workspace minus walls, obstacles and other regions grown by the
+#: entity's radius plus the controllers' margin (a fixed length, so it also decides on small-scale maps).
+_NO_PASSAGE = f"no passage wide enough (walls, obstacles and other regions grown by the radius + {CONTROL_MARGIN:g} m)"
 
 State = tuple
 
@@ -192,7 +196,7 @@ class TransitionSystem:
                 continue
             if not self.connected(r, a.src, a.dst):
                 return (f"{who} (radius {r:.2f} m) cannot travel from {self.region_names[a.src]} to "
-                        f"{self.region_names[a.dst]}: no passage wide enough")
+                        f"{self.region_names[a.dst]}: {_NO_PASSAGE}")
         return None
 
     def reach(self, radius: float, k: int) -> list[int]:
@@ -210,7 +214,7 @@ class TransitionSystem:
             miss = [names[m] for m in range(self.K) if m not in self.reach(self.robot_radius[i], k)]
             if miss:
                 out.append(f"robot {self.robot_names[i]} (radius {self.robot_radius[i]:.2f} m) can never reach "
-                           f"{', '.join(miss)} from {names[k]}: no passage wide enough")
+                           f"{', '.join(miss)} from {names[k]}: {_NO_PASSAGE}")
         for j in range(self.M):
             k = self.initial[self.N + j]
             largest = self.N if self.N <= 12 else 4
@@ -222,7 +226,7 @@ class TransitionSystem:
             miss = [names[m] for m in range(self.K) if m not in self.reach(r, k)]
             if miss:
                 out.append(f"object {self.object_names[j]} can never be carried to {', '.join(miss)} from "
-                           f"{names[k]}: no passage wide enough for its smallest team (covering radius {r:.2f} m)")
+                           f"{names[k]}: {_NO_PASSAGE} for its smallest team (covering radius {r:.2f} m)")
         return out
 
     # ------------------------------------------------------------------ validity

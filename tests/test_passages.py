@@ -61,5 +61,6 @@ def test_validate_reports_the_blocked_travel(tmp_path, capsys):
     assert cli.main(["validate", str(path)]) == 0
     out = capsys.readouterr().out.strip().splitlines()
     assert out[0].startswith(f"{path}: ok")
-    assert out[1:] == [f"{path}: object o1 can never be carried to p2 from p1: no passage wide enough for its "
-                       "smallest team (covering radius 1.90 m)"]
+    assert out[1:] == [f"{path}: object o1 can never be carried to p2 from p1: no passage wide enough (walls, "
+                       "obstacles and other regions grown by the radius + 0.5 m) for its smallest team (covering "
+                       "radius 1.90 m)"]
