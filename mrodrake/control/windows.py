@@ -13,7 +13,10 @@ Where H does not resolve the rest of the motion (:func:`resolution` below :data:
 shortest path to the goal, :func:`grid_path`), the same law runs on the map of a *window*: the component of
 F ∩ B(x, :data:`WINDOW_RADIUS`) around the entity, whose holes cut by the window's rim become part of its
 outer boundary (H runs along them with arc length instead of being constant), toward the farthest point of the
-path inside the window (:func:`window_free_space`).  F ∩ B ⊂ F, so each window keeps the guarantees of the
+path inside the window (:func:`window_free_space`).  The same holds where the whole map puts the start or the
+goal beyond its circle barrier ρ₀: a dead end of the outer boundary that is narrow for the entity gets a sliver
+of the circle (arc length of a boundary hundreds of metres long), a window's boundary a larger share.
+F ∩ B ⊂ F, so each window keeps the guarantees of the
 law on its own map (no collision, φ bounded); the motion moves on to the next window near each waypoint.
 """
 

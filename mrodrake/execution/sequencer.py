@@ -467,12 +467,17 @@ class Sequencer:
     def _map_task(self, ed: _Edit, X: np.ndarray, m: Motion, threshold: float) -> Motion:
         """The point-world law from where the entity is: on the map of the whole motion (``m.world``) if it
         resolves the entity's position and its goal (:func:`~mrodrake.control.windows.resolution` at least
-        ``threshold``), else on the map of the window around the entity toward its waypoint (the map of the
-        whole motion there when no window can be built)."""
+        ``threshold``) and maps both inside its circle barrier ρ₀, else on the map of the window around the
+        entity toward its waypoint (the map of the whole motion there when no window can be built; a threshold
+        of 0 never windows).  A goal deep in a dead end that is narrow for the entity maps next to the unit
+        circle, since the outer boundary runs once around it by arc length and the dead end gets a sliver of
+        it (corridor map, a team's goal at the corridor's end: ‖χ‖ = 0.99887 > ρ₀ = 0.99523); on a window,
+        whose boundary is tens of metres instead of hundreds, the same dead end gets a larger share."""
         free, pw = m.world
         x = X[m.entity, :2].copy()
         free = replace(free, start=x)
-        if np.min(resolution(pw, [x, m.goal])) < threshold:
+        if threshold > 0.0 and (np.min(resolution(pw, [x, m.goal])) < threshold
+                                or not np.all(inside_circle(pw, [x, m.goal]))):
             windowed = self._window(ed, x, m, free)
             if windowed is not None:
                 return windowed

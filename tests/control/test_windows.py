@@ -4,11 +4,14 @@ motion and its ideal flow leaves the aisle, while the flow on the whole map goes
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
+import pytest
 import shapely
 
 from mrodrake.control.freespace import Disk, entity_free_space
-from mrodrake.control.tasks import build_map, build_task
+from mrodrake.control.tasks import build_map, build_task, inside_circle
 from mrodrake.control.windows import RESOLUTION, grid_path, resolution, window_free_space
 from mrodrake.planning.generate import generate_scenario, load_map
 
@@ -61,3 +64,25 @@ def test_a_goal_inside_a_narrow_aisle_is_not_resolved():
     pw = build_map(free)
     res = resolution(pw, [start, goal, (30.0, 25.0)])
     assert res[0] >= RESOLUTION and res[1] < 1e-2 * RESOLUTION and res[2] < 1e-6 * RESOLUTION
+
+
+def test_a_goal_at_the_end_of_a_narrow_corridor_runs_on_a_window_map():
+    """Maps campaign, gen_corridor_n2_m1_k3_s1-p0-l0-d0, "transport o1 by r1 p3->p6": the team (covering
+    radius 1.886 m) has a 1.2 m band along the 6 m corridor, and p6 lies at its dead end.  The outer boundary
+    runs once around the unit circle by arc length, so the dead end gets a sliver of it and the goal maps at
+    ‖χ‖ = 0.9989, beyond the circle barrier ρ₀ = 0.9952 of the whole map: no task can be built there.  A window
+    ending at the goal has a boundary of tens of metres instead of hundreds, and its law reaches the goal."""
+    sc = generate_scenario(2, 1, 3, 1, map=load_map("corridor"))
+    start, goal = np.array([46.0003, 21.8906]), np.array([3.469999, 13.0])
+    free = entity_free_space(sc, 1.8860, start, goal, "p3", "p6", [])
+    pw = build_map(free)
+    assert not inside_circle(pw, [goal])[0] and inside_circle(pw, [start])[0]
+    with pytest.raises(ValueError, match="not inside the circle barrier"):
+        build_task(sc, free, pw_map=pw)
+
+    x = np.array([12.0, 13.0])  # in the corridor, 8.5 m from the goal
+    window, wpw = window_free_space(free, x, grid_path(free.polygon, x, goal))
+    assert np.allclose(window.goal, goal)
+    assert inside_circle(wpw, [x, goal]).all()
+    end = _flow(build_task(sc, replace(window, start=x), pw_map=wpw), x, 600.0)
+    assert np.linalg.norm(end - goal) < 0.5

@@ -1,7 +1,8 @@
 """Whole missions that used to stop early on generated tasks (issue 13's reproducers): a false alarm of the
 label monitor (3, 1, 3, 11), no consistent order of concurrent actions (3, 2, 4, 15) and a mission that went
 numerically unstable (4, 2, 4, 21).  Each now plans on the executed-word semantics, places the whole run and
-executes to the end.  Several minutes each on the office map: slow set (``--runslow``)."""
+executes to the end.  Several minutes each on the office map: slow set (``--runslow``).  A campaign mission on
+the corridor map whose goal maps beyond the circle barrier runs in the default set (~20 s)."""
 
 from __future__ import annotations
 
@@ -20,3 +21,40 @@ def test_generated_reproducer_runs_to_completion(n, m, k, seed):
     assert log.steps_done == log.steps_total
     labels = log.events[log.events["kind"] == "label"]
     assert labels["ok"].all()
+
+
+CORRIDOR_N2_M1_K3_S1 = """
+name: regression
+scenarios:
+  - generate: {robots: [2], objects: [1], regions: [3], seeds: {start: 1, count: 1}, map: corridor}
+randomize:
+  seed: 13
+  robot_mass: [0.5, 2.0]
+  object_mass: [0.5, 2.0]
+  friction_scale: [0.0, 2.0]
+  friction_frequency: [0.4, 2.0]
+  initial_positions: true
+"""
+
+
+def test_a_transport_to_the_end_of_a_narrow_corridor_runs_to_completion(tmp_path):
+    """Campaign mission gen_corridor_n2_m1_k3_s1-p0-l0-d0 (randomized, its layout seed): step 4 carries o1
+    by r1 to p6 at the dead end of the corridor, whose goal maps beyond the whole map's circle barrier
+    ("transport of o1: point ... is not inside the circle barrier"); it now runs on windows there."""
+    from threadpoolctl import threadpool_limits
+
+    from mrodrake.campaign import load_campaign, randomized_scenario
+    from mrodrake.planning.plan import plan_scenario
+
+    spec = tmp_path / "spec.yaml"
+    spec.write_text(CORRIDOR_N2_M1_K3_S1)
+    task = load_campaign(spec).tasks[0]
+    assert task.mission_id == "gen_corridor_n2_m1_k3_s1-p0-l0-d0"
+    sc = randomized_scenario(task.instance.scenario, task.params)
+    with threadpool_limits(limits=1, user_api="blas"):
+        plan = plan_scenario(sc, seed=task.plan_seed, time_limit=60)
+    log = run_mission(sc, plan=plan, seed=task.layout_seed)
+    assert log.ok, log.message
+    assert log.steps_done == log.steps_total
+    prims = log.events[log.events["kind"] == "primitive"]
+    assert "transport o1 by r1 p3->p6" in set(prims["action"])
