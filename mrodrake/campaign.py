@@ -354,8 +354,8 @@ def load_campaign(path: str | Path) -> Campaign:
 #: and whose substring occurs in the message wins.  Stages: ``plan`` (UserError from planning) and
 #: ``mission`` (a failed mission log or an exception raised while building or simulating the mission).
 FAILURE_PATTERNS: tuple[tuple[str, str, tuple[str, ...]], ...] = (
+    ("plan", "plan_not_found", ("no plan found",)),  # it may end "... no relaxation proves ... unsatisfiable"
     ("plan", "plan_unsat", ("unsatisfiable",)),
-    ("plan", "plan_not_found", ("no plan found",)),
     ("mission", "no_order", ("no order of the concurrent actions",)),
     ("mission", "nba_run", ("monitored NBA run",)),
     ("mission", "state_mismatch", ("differs from the plan",)),

@@ -195,6 +195,9 @@ def test_metrics_recomputed_from_the_trajectory():
 def test_failure_kinds_table():
     assert classify("plan", "task is unsatisfiable: the NBA ...", "plan_error") == "plan_unsat"
     assert classify("plan", "no plan found within 2000 iterations", "plan_error") == "plan_not_found"
+    assert classify("plan", "no plan found within 57185 iterations and 60.0 s; satisfiability unknown (...); the "
+                    "explicit product is too large to decide (...) and no relaxation proves the task unsatisfiable",
+                    "plan_error") == "plan_not_found"
     assert classify("plan", "object o1: no team can move it", "plan_error") == "plan_error"
     assert classify("mission", "the monitored NBA run died at t=3.00", "mission_failed") == "nba_run"
     assert classify("mission", "RuntimeError: Error control wants to select step smaller than minimum allowed",
