@@ -364,6 +364,8 @@ FAILURE_PATTERNS: tuple[tuple[str, str, tuple[str, ...]], ...] = (
     ("mission", "goal_unreachable", ("goal unreachable",)),
     ("mission", "no_grasp_point", ("no reachable grasp point",)),
     ("mission", "no_room", ("no room for an entity", "do not fit")),
+    ("mission", "placement", ("no free grasp layout", "no layout keeps the room", "no room to back off",
+                              "no room for")),
     ("mission", "outside_free_space", ("not in the free space",)),
     ("mission", "degenerate_map", ("degenerate",)),
     ("mission", "non_finite", ("non-finite", "not finite")),

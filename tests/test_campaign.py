@@ -195,6 +195,10 @@ def test_metrics_recomputed_from_the_trajectory():
 def test_failure_kinds_table():
     assert classify("plan", "task is unsatisfiable: the NBA ...", "plan_error") == "plan_unsat"
     assert classify("plan", "no plan found within 2000 iterations", "plan_error") == "plan_not_found"
+    assert classify("mission", "UserError: step 3 (plan step 3): region 'p2': no free grasp layout for r1+r3 around o1",
+                    "exception") == "placement"
+    assert classify("mission", "initial state: region 'p2': no layout keeps the room later steps need",
+                    "exception") == "placement"
     assert classify("plan", "no plan found within 57185 iterations and 60.0 s; satisfiability unknown (...); the "
                     "explicit product is too large to decide (...) and no relaxation proves the task unsatisfiable",
                     "plan_error") == "plan_not_found"
