@@ -173,10 +173,18 @@ class RegionGraph:
             self._base[r] = hit
         return hit
 
-    def _compute(self, r: float, k: int, k2: int) -> bool:
+    def travel_space(self, radius: float, k: int, k2: int):
+        """The component of the travel space of a trip k → k' for ``radius`` that meets the seats of both
+        (None: they are not connected)."""
+        r = self._key(radius)
+        if self.regions[k][1] <= r or self.regions[k2][1] <= r:
+            return None
+        free, seat1, seat2 = self._travel(r, k, k2)
+        return next((q for q in getattr(free, "geoms", [free])
+                     if not q.is_empty and q.intersects(seat1) and q.intersects(seat2)), None)
+
+    def _travel(self, r: float, k: int, k2: int) -> tuple:
         (c1, R1), (c2, R2) = self.regions[k], self.regions[k2]
-        if R1 <= r or R2 <= r:
-            return False
         base, grown = self._geometry(r)
         others = [grown[m] for m in range(len(self.regions)) if m not in (k, k2)]
         free = base.difference(unary_union(others)) if others else base
@@ -184,5 +192,11 @@ class RegionGraph:
             free = free.buffer(-self.safety, join_style="mitre")
         seat1 = Point(*c1).buffer(R1 - r, quad_segs=DISK_QUAD_SEGS)
         seat2 = Point(*c2).buffer(R2 - r, quad_segs=DISK_QUAD_SEGS)
+        return free, seat1, seat2
+
+    def _compute(self, r: float, k: int, k2: int) -> bool:
+        if self.regions[k][1] <= r or self.regions[k2][1] <= r:
+            return False
+        free, seat1, seat2 = self._travel(r, k, k2)
         return any(not p.is_empty and p.intersects(seat1) and p.intersects(seat2)
                    for p in getattr(free, "geoms", [free]))

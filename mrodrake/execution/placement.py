@@ -43,6 +43,7 @@ from enum import Enum
 import numpy as np
 import shapely
 from shapely.geometry import Point
+from shapely.ops import unary_union
 
 from mrodrake.control.local import local_path
 from mrodrake.errors import UserError
@@ -153,6 +154,7 @@ class _Placer:
         self._samples: dict[int, np.ndarray] = {}
         self._next: dict[tuple[int, int], tuple[int, ...] | None] = {}
         self._fits: dict[tuple, bool] = {}  # answers of the ``future`` check of spot (a pure function)
+        self._spaces: dict[tuple, object] = {}  # static travel spaces per (region, other region, radius)
         self.variant = 0
         self.rng = np.random.default_rng(self.seed)
         #: the (object, team) pairs with a team plant: only they can carry their object inside a region
@@ -272,12 +274,13 @@ class _Placer:
 
     def spot(self, k: int, r: float, cs: Sequence[np.ndarray], rs: Sequence[float],
              keep_clear: Sequence[tuple[np.ndarray, float]] = (), future: Sequence[float] = (),
-             near: np.ndarray | None = None, rim_extra: float = 0.0) -> np.ndarray | None:
+             near: np.ndarray | None = None, rim_extra: float = 0.0, accept=None) -> np.ndarray | None:
         """One disk of radius r in region k, as far out as it goes (rings from the rim inwards, every
         0.25 m; the centre stays free for what comes later), clear of the fixed disks, the boundary samples
         and ``keep_clear`` (centre, distance) by the spacing; on a ring, the most clearance first (or the
         point nearest to ``near``).  With ``future`` radii, the disk must leave a P_s placement for them
-        (two candidates per ring are tried); ``rim_extra`` keeps that much more room to the rim."""
+        (two candidates per ring are tried); ``rim_extra`` keeps that much more room to the rim; ``accept``
+        (a predicate of the spot, :meth:`_passages`) filters the candidates."""
         c, R, sp = self.centers[k], float(self.R[k]), self.spacing
         S = self.samples(k)
         cs_xy = np.array(cs, dtype=float).reshape(-1, 2)
@@ -291,12 +294,13 @@ class _Placer:
             rings = rings[self.rng.permutation(len(rings))]
         # with ``future``: first every ring with the greedy P_s check alone, then with its relaxations
         for restarts in ((0, None) if future else (None,)):
-            p = self._spot_pass(k, r, c, rings, fc, fr, keep_clear, future, near, restarts)
+            p = self._spot_pass(k, r, c, rings, fc, fr, keep_clear, future, near, restarts, accept)
             if p is not None:
                 return p
         return None
 
-    def _spot_pass(self, k, r, c, rings, fc, fr, keep_clear, future, near, restarts) -> np.ndarray | None:
+    def _spot_pass(self, k, r, c, rings, fc, fr, keep_clear, future, near, restarts,
+                   accept=None) -> np.ndarray | None:
         """One pass of :meth:`spot` over ``rings``; ``restarts``: relaxations of the ``future`` check (None:
         as many as :func:`place` tries)."""
         sp, R = self.spacing, float(self.R[k])
@@ -320,7 +324,8 @@ class _Placer:
                 idx = idx[self.rng.permutation(len(idx))]
             else:
                 idx = idx[np.argsort(-clear[idx], kind="stable")]
-            for i in idx[: 2 if future else 1]:
+            cands = idx if accept is None else (i for i in idx if accept(pts[i]))
+            for i in itertools.islice(cands, 2 if future else 1):
                 p = pts[i]
                 if not future:
                     return p
@@ -446,7 +451,10 @@ class _Placer:
             ri = float(self.radii[i])
             cs, rs, _ = self.units(w, k, step, {i})
             keep = self._departures(w, k, step, i, -1)
-            p = self.spot(k, ri, cs, rs, keep_clear=keep, near=w.pos[i])
+            accept = self._passages(w, k, step, i, {i}, ri)
+            p = None if accept is None else self.spot(k, ri, cs, rs, keep_clear=keep, near=w.pos[i], accept=accept)
+            if p is None or not self.path_ok(w, i, k, p, set()):
+                p = self.spot(k, ri, cs, rs, keep_clear=keep, near=w.pos[i])
             if p is None or not self.path_ok(w, i, k, p, set()):
                 # the covering disks of the teams that leave while i stands there, as fixed disks of P_s
                 cs_k = list(cs) + [c for c, _ in keep]
@@ -676,7 +684,12 @@ class _Placer:
         future = self.future_units(w, step, k, e)
         docked = self._docked_separations(w, k, step, a) if isinstance(a, Transport) else []
         spot, ops = None, []
-        for extra in ([(c, d) for _, c, d in docked], []) if docked else ([],):
+        accept = self._passages(w, k, step, e, movers, r)
+        if accept is not None:  # first where the region's later trips keep their way out, with all the foresight
+            spot = self.spot(k, r, cs, rs, keep_clear + [(c, d) for _, c, d in docked], future, accept=accept)
+        for extra in ([(c, d) for _, c, d in docked], []) if docked and spot is None else ([],):
+            if spot is not None:
+                break
             for fut in ((future, future[:1], ()) if future else ((),)):
                 spot = self.spot(k, r, cs, rs, keep_clear + extra, fut)
                 if spot is not None:
@@ -787,6 +800,54 @@ class _Placer:
             if need > 0.0:
                 out.append((w.pos[e], need))
         return out
+
+    def _space(self, R: float, k: int, m: int):
+        key = (k, m, round(float(R), 6))
+        if key not in self._spaces:
+            self._spaces[key] = self.ts.region_graph.travel_space(R, k, m)
+        return self._spaces[key]
+
+    def _passages(self, w: _World, k: int, step: int, e: int, movers: set[int], r: float):
+        """A predicate of a spot for entity e (radius r) parked in region k from executed step ``step`` until
+        it acts again: every trip from or to region k meanwhile (entity radius R) still connects its start
+        (where it stands, for a departure; region k's seat, for an arrival) with the seat of its other region
+        in the static travel space minus the disks of the entities in region k grown by R.  A spot beside a
+        door may cut the door off for a team (corridor map: a robot parked 2.4 m inside the door of room S1
+        left the team that formed in the room no way out).  None when no trip needs the check."""
+        N, M, sp = self.N, self.M, self.spacing
+        until = self._acts_at(e, step)[0] if e < N else self._next_transport(e - N, step)
+        trips = []
+        for n in range(max(step, 0), int(min(until, len(self.steps) - 1)) + 1):
+            for a in self.steps[n].actions:
+                if isinstance(a, Navigate):
+                    body, R, x = {a.robot}, float(self.radii[a.robot]), a.robot
+                elif isinstance(a, Transport):
+                    body, R, x = {N + a.obj, *a.team}, self.ts.covering_radius(a.obj, a.team), N + a.obj
+                else:
+                    continue
+                if body & (movers | {e}) or k not in (a.src, a.dst):
+                    continue
+                other = a.dst if a.src == k else a.src
+                space = self._space(R, k, other)
+                if space is None:
+                    continue
+                seats = [Point(*self.centers[g]).buffer(max(float(self.R[g]) - R, 1e-3)) for g in (k, other)]
+                src = Point(*w.pos[x]).buffer(1e-3) if a.src == k and w.where[x] == k else seats[0]
+                stay = [(w.pos[y].copy(), float(self.radii[y])) for y in range(N + M)
+                        if w.where[y] == k and y not in body and y not in movers and y != e]
+                trips.append((R, space, src, seats[1], stay))
+        if not trips:
+            return None
+
+        def ok(p) -> bool:
+            for R, space, src, dst, stay in trips:
+                if space.boundary.distance(Point(*p)) > r + R + sp:
+                    continue  # a disk that does not reach the boundary cannot cut the space
+                rest = space.difference(unary_union([Point(*c).buffer(rr + R) for c, rr in [*stay, (p, r)]]))
+                if not any(q.intersects(src) and q.intersects(dst) for q in getattr(rest, "geoms", [rest])):
+                    return False
+            return True
+        return ok
 
     def _acts_at(self, i: int, step: int) -> tuple[float, int]:
         """(executed step, position) of robot i's next action after ``step``; a grasp or release counts as

@@ -58,3 +58,24 @@ def test_a_transport_to_the_end_of_a_narrow_corridor_runs_to_completion(tmp_path
     assert log.steps_done == log.steps_total
     prims = log.events[log.events["kind"] == "primitive"]
     assert "transport o1 by r1 p3->p6" in set(prims["action"])
+
+
+def test_a_robot_parked_by_a_door_leaves_the_team_a_way_out(tmp_path):
+    """Campaign mission gen_corridor_n3_m1_k3_s1-p0-l0-d0: r1 parked in p4 2.4 m inside the 6 m door of room
+    S1, and the team r2 + o1 (covering radius 1.91 m) that formed in p4 afterwards had no way out ("transport
+    of o1: goal unreachable"); spots now keep the region's later trips connected."""
+    from threadpoolctl import threadpool_limits
+
+    from mrodrake.campaign import load_campaign, randomized_scenario
+    from mrodrake.planning.plan import plan_scenario
+
+    spec = tmp_path / "spec.yaml"
+    spec.write_text(CORRIDOR_N2_M1_K3_S1.replace("robots: [2]", "robots: [3]"))
+    task = load_campaign(spec).tasks[0]
+    assert task.mission_id == "gen_corridor_n3_m1_k3_s1-p0-l0-d0"
+    sc = randomized_scenario(task.instance.scenario, task.params)
+    with threadpool_limits(limits=1, user_api="blas"):
+        plan = plan_scenario(sc, seed=task.plan_seed, time_limit=60)
+    log = run_mission(sc, plan=plan, seed=task.layout_seed)
+    assert log.ok, log.message
+    assert log.steps_done == log.steps_total
