@@ -295,15 +295,10 @@ def test_a_robot_keeps_out_of_the_covering_disk_of_a_team_that_leaves_before_it(
     ("start not in the free space").  Every transport's covering disk must be clear at its start."""
     from threadpoolctl import threadpool_limits
 
-    from mrodrake.campaign import load_campaign, randomized_scenario
+    from tests.helpers.campaign import campaign_mission
 
-    spec = tmp_path / "spec.yaml"
-    spec.write_text(GEN_N4_M2_K3_S2)
-    task = load_campaign(spec).tasks[0]
-    assert task.mission_id == "gen_n4_m2_k3_s2-p0-l0-d0"
-    sc = randomized_scenario(task.instance.scenario, task.params)
+    task, sc, plan = campaign_mission(tmp_path, GEN_N4_M2_K3_S2, "gen_n4_m2_k3_s2-p0-l0-d0")
     with threadpool_limits(limits=1, user_api="blas"):
-        plan = plan_scenario(sc, seed=task.plan_seed, time_limit=60)
         pl = place_run(plan.ts, expand_steps(plan, 1), seed=task.layout_seed)
     assert blocked_departures(plan.ts, pl) == []
 

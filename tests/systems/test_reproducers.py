@@ -10,6 +10,7 @@ import pytest
 
 from mrodrake.planning.generate import generate_scenario
 from mrodrake.run import run_mission
+from tests.helpers.campaign import campaign_mission
 
 
 @pytest.mark.slow
@@ -41,18 +42,7 @@ def test_a_transport_to_the_end_of_a_narrow_corridor_runs_to_completion(tmp_path
     """Campaign mission gen_corridor_n2_m1_k3_s1-p0-l0-d0 (randomized, its layout seed): step 4 carries o1
     by r1 to p6 at the dead end of the corridor, whose goal maps beyond the whole map's circle barrier
     ("transport of o1: point ... is not inside the circle barrier"); it now runs on windows there."""
-    from threadpoolctl import threadpool_limits
-
-    from mrodrake.campaign import load_campaign, randomized_scenario
-    from mrodrake.planning.plan import plan_scenario
-
-    spec = tmp_path / "spec.yaml"
-    spec.write_text(CORRIDOR_N2_M1_K3_S1)
-    task = load_campaign(spec).tasks[0]
-    assert task.mission_id == "gen_corridor_n2_m1_k3_s1-p0-l0-d0"
-    sc = randomized_scenario(task.instance.scenario, task.params)
-    with threadpool_limits(limits=1, user_api="blas"):
-        plan = plan_scenario(sc, seed=task.plan_seed, time_limit=60)
+    task, sc, plan = campaign_mission(tmp_path, CORRIDOR_N2_M1_K3_S1, "gen_corridor_n2_m1_k3_s1-p0-l0-d0")
     log = run_mission(sc, plan=plan, seed=task.layout_seed)
     assert log.ok, log.message
     assert log.steps_done == log.steps_total
@@ -64,18 +54,8 @@ def test_a_robot_parked_by_a_door_leaves_the_team_a_way_out(tmp_path):
     """Campaign mission gen_corridor_n3_m1_k3_s1-p0-l0-d0: r1 parked in p4 2.4 m inside the 6 m door of room
     S1, and the team r2 + o1 (covering radius 1.91 m) that formed in p4 afterwards had no way out ("transport
     of o1: goal unreachable"); spots now keep the region's later trips connected."""
-    from threadpoolctl import threadpool_limits
-
-    from mrodrake.campaign import load_campaign, randomized_scenario
-    from mrodrake.planning.plan import plan_scenario
-
-    spec = tmp_path / "spec.yaml"
-    spec.write_text(CORRIDOR_N2_M1_K3_S1.replace("robots: [2]", "robots: [3]"))
-    task = load_campaign(spec).tasks[0]
-    assert task.mission_id == "gen_corridor_n3_m1_k3_s1-p0-l0-d0"
-    sc = randomized_scenario(task.instance.scenario, task.params)
-    with threadpool_limits(limits=1, user_api="blas"):
-        plan = plan_scenario(sc, seed=task.plan_seed, time_limit=60)
+    task, sc, plan = campaign_mission(tmp_path, CORRIDOR_N2_M1_K3_S1.replace("robots: [2]", "robots: [3]"),
+                                      "gen_corridor_n3_m1_k3_s1-p0-l0-d0")
     log = run_mission(sc, plan=plan, seed=task.layout_seed)
     assert log.ok, log.message
     assert log.steps_done == log.steps_total
