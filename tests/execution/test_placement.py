@@ -274,18 +274,7 @@ def test_case_study_2_optimum_places():
             check_configuration(ts, sp.step.dst, np.asarray(sp.positions))
 
 
-GEN_N4_M2_K3_S2 = """
-name: regression
-scenarios:
-  - generate: {robots: [4], objects: [2], regions: [3], seeds: {start: 2, count: 1}}
-randomize:
-  seed: 13
-  robot_mass: [0.5, 2.0]
-  object_mass: [0.5, 2.0]
-  friction_scale: [0.0, 2.0]
-  friction_frequency: [0.4, 2.0]
-  initial_positions: true
-"""
+GEN_N4_M2_K3_S2 = "{robots: [4], objects: [2], regions: [3], seeds: {start: 2, count: 1}}"
 
 
 def test_a_robot_keeps_out_of_the_covering_disk_of_a_team_that_leaves_before_it(tmp_path):

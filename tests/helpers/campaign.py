@@ -7,12 +7,23 @@ from threadpoolctl import threadpool_limits
 from mrodrake.campaign import load_campaign, randomized_scenario
 from mrodrake.planning.plan import plan_scenario
 
+#: The randomization of the issue-13 campaign (scenarios/campaigns/issue13.yaml).
+RANDOMIZE = """
+randomize:
+  seed: 13
+  robot_mass: [0.5, 2.0]
+  object_mass: [0.5, 2.0]
+  friction_scale: [0.0, 2.0]
+  friction_frequency: [0.4, 2.0]
+  initial_positions: true
+"""
 
-def campaign_mission(tmp_path, spec_text: str, mission_id: str):
-    """(task, randomized scenario, plan) of the first mission of the spec ``spec_text``, which must be
-    ``mission_id``."""
+
+def campaign_mission(tmp_path, generate: str, mission_id: str):
+    """(task, randomized scenario, plan) of the first mission of a campaign of the one ``generate`` entry
+    (YAML flow mapping) with the issue-13 randomization; the mission must be ``mission_id``."""
     spec = tmp_path / "spec.yaml"
-    spec.write_text(spec_text)
+    spec.write_text(f"name: regression\nscenarios:\n  - generate: {generate}\n{RANDOMIZE}")
     task = load_campaign(spec).tasks[0]
     assert task.mission_id == mission_id
     sc = randomized_scenario(task.instance.scenario, task.params)

@@ -24,18 +24,7 @@ def test_generated_reproducer_runs_to_completion(n, m, k, seed):
     assert labels["ok"].all()
 
 
-CORRIDOR_N2_M1_K3_S1 = """
-name: regression
-scenarios:
-  - generate: {robots: [2], objects: [1], regions: [3], seeds: {start: 1, count: 1}, map: corridor}
-randomize:
-  seed: 13
-  robot_mass: [0.5, 2.0]
-  object_mass: [0.5, 2.0]
-  friction_scale: [0.0, 2.0]
-  friction_frequency: [0.4, 2.0]
-  initial_positions: true
-"""
+CORRIDOR_N2_M1_K3_S1 = "{robots: [2], objects: [1], regions: [3], seeds: {start: 1, count: 1}, map: corridor}"
 
 
 def test_a_transport_to_the_end_of_a_narrow_corridor_runs_to_completion(tmp_path):
