@@ -133,6 +133,7 @@ class RegionGraph:
         self._no = np.full((K, K), np.inf)     # smallest radius known separated
         self._base: dict[float, tuple] = {}
         self._matrix: dict[float, np.ndarray] = {}
+        self._spaces: dict[tuple, object] = {}  # travel_space answers
 
     def _key(self, radius: float) -> float:
         return math.ceil(float(radius) / self.RADIUS_STEP - 1e-9) * self.RADIUS_STEP
@@ -176,15 +177,15 @@ class RegionGraph:
     def travel_space(self, radius: float, k: int, k2: int):
         """The component of the travel space of a trip k → k' for ``radius`` that meets the seats of both
         (None: they are not connected)."""
-        r = self._key(radius)
-        if self.regions[k][1] <= r or self.regions[k2][1] <= r:
-            return None
-        free, seat1, seat2 = self._travel(r, k, k2)
-        return next((q for q in getattr(free, "geoms", [free])
-                     if not q.is_empty and q.intersects(seat1) and q.intersects(seat2)), None)
+        key = (self._key(radius), k, k2)
+        if key not in self._spaces:
+            self._spaces[key] = self._component(*key)
+        return self._spaces[key]
 
-    def _travel(self, r: float, k: int, k2: int) -> tuple:
+    def _component(self, r: float, k: int, k2: int):
         (c1, R1), (c2, R2) = self.regions[k], self.regions[k2]
+        if R1 <= r or R2 <= r:
+            return None
         base, grown = self._geometry(r)
         others = [grown[m] for m in range(len(self.regions)) if m not in (k, k2)]
         free = base.difference(unary_union(others)) if others else base
@@ -192,11 +193,8 @@ class RegionGraph:
             free = free.buffer(-self.safety, join_style="mitre")
         seat1 = Point(*c1).buffer(R1 - r, quad_segs=DISK_QUAD_SEGS)
         seat2 = Point(*c2).buffer(R2 - r, quad_segs=DISK_QUAD_SEGS)
-        return free, seat1, seat2
+        return next((q for q in getattr(free, "geoms", [free])
+                     if not q.is_empty and q.intersects(seat1) and q.intersects(seat2)), None)
 
     def _compute(self, r: float, k: int, k2: int) -> bool:
-        if self.regions[k][1] <= r or self.regions[k2][1] <= r:
-            return False
-        free, seat1, seat2 = self._travel(r, k, k2)
-        return any(not p.is_empty and p.intersects(seat1) and p.intersects(seat2)
-                   for p in getattr(free, "geoms", [free]))
+        return self._component(r, k, k2) is not None

@@ -24,7 +24,8 @@ with it, so an arriving team keeps such robots (its own members' slots included)
 every team that stands or forms around another object while they stay docked; when no spot does, an earlier
 arrival learns to keep the object in the way off it.  A robot arriving, or backing off after a release, where
 a team stands keeps out of that team's covering disk if the team leaves before the robot acts again (in
-execution order).  Spots keep
+execution order), and parked spots are first sought where the region's later trips keep a way out (a spot beside
+a door can cut it off for a team).  Spots keep
 ``radius + CONTROL_MARGIN`` to walls, obstacles and other regions (sampled boundary points are fixed disks), so
 that the point-world free space of a departure or an arrival contains them.  Every local motion
 (back-off, docking, room move) is checked for a straight-leg path inside its region
@@ -154,7 +155,6 @@ class _Placer:
         self._samples: dict[int, np.ndarray] = {}
         self._next: dict[tuple[int, int], tuple[int, ...] | None] = {}
         self._fits: dict[tuple, bool] = {}  # answers of the ``future`` check of spot (a pure function)
-        self._spaces: dict[tuple, object] = {}  # static travel spaces per (region, other region, radius)
         self.variant = 0
         self.rng = np.random.default_rng(self.seed)
         #: the (object, team) pairs with a team plant: only they can carry their object inside a region
@@ -687,9 +687,7 @@ class _Placer:
         accept = self._passages(w, k, step, e, movers, r)
         if accept is not None:  # first where the region's later trips keep their way out, with all the foresight
             spot = self.spot(k, r, cs, rs, keep_clear + [(c, d) for _, c, d in docked], future, accept=accept)
-        for extra in ([(c, d) for _, c, d in docked], []) if docked and spot is None else ([],):
-            if spot is not None:
-                break
+        for extra in (([(c, d) for _, c, d in docked], []) if docked else ([],)) if spot is None else ():
             for fut in ((future, future[:1], ()) if future else ((),)):
                 spot = self.spot(k, r, cs, rs, keep_clear + extra, fut)
                 if spot is not None:
@@ -801,12 +799,6 @@ class _Placer:
                 out.append((w.pos[e], need))
         return out
 
-    def _space(self, R: float, k: int, m: int):
-        key = (k, m, round(float(R), 6))
-        if key not in self._spaces:
-            self._spaces[key] = self.ts.region_graph.travel_space(R, k, m)
-        return self._spaces[key]
-
     def _passages(self, w: _World, k: int, step: int, e: int, movers: set[int], r: float):
         """A predicate of a spot for entity e (radius r) parked in region k from executed step ``step`` until
         it acts again: every trip from or to region k meanwhile (entity radius R) still connects its start
@@ -828,7 +820,7 @@ class _Placer:
                 if body & (movers | {e}) or k not in (a.src, a.dst):
                     continue
                 other = a.dst if a.src == k else a.src
-                space = self._space(R, k, other)
+                space = self.ts.region_graph.travel_space(R, k, other)
                 if space is None:
                     continue
                 seats = [Point(*self.centers[g]).buffer(max(float(self.R[g]) - R, 1e-3)) for g in (k, other)]
