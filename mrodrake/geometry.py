@@ -12,6 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import shapely
+from scipy.sparse.csgraph import dijkstra
 from shapely.geometry import LinearRing, Point, Polygon
 from shapely.ops import unary_union
 from shapely.validation import explain_validity
@@ -198,3 +199,97 @@ class RegionGraph:
 
     def _compute(self, r: float, k: int, k2: int) -> bool:
         return self._component(r, k, k2) is not None
+
+
+#: Clearance (m) the planned legs keep from the grown disks (half of it is required of every leg).
+PATH_CLEARANCE = 0.1
+_NODES_PER_DISK = 16
+#: Rounding allowance (m) of the clearance tests of :func:`local_path`: a chord between consecutive corners of a
+#: ring is tangent to the ring's grown circle, at exactly ρ + need from the disk's centre.
+_ROUND = 1e-9
+
+
+def segment_distances(p: np.ndarray, q: np.ndarray, centers: np.ndarray) -> np.ndarray:
+    """Distance from every centre (L, 2) to every segment p_k q_k (k, 2): shape (k, L)."""
+    d = q - p
+    dd = np.maximum(np.einsum("ij,ij->i", d, d), 1e-300)
+    w = centers[None, :, :] - p[:, None, :]
+    s = np.clip(np.einsum("kld,kd->kl", w, d) / dd[:, None], 0.0, 1.0)
+    near = p[:, None, :] + s[..., None] * d[:, None, :]
+    return np.linalg.norm(centers[None, :, :] - near, axis=-1)
+
+
+def local_path(start, goal, centers, radii, rim_center, rim_radius, clearance: float = PATH_CLEARANCE,
+               nodes_per_disk: int = _NODES_PER_DISK) -> np.ndarray:
+    """Shortest path of straight legs from ``start`` to ``goal`` inside the disk (rim_center, rim_radius)
+    avoiding the disks (centers, radii): waypoints (k, 2), the last one the goal.
+
+    A leg is admissible when it stays ``need`` = ``clearance``/2 from every disk (less next to the start or
+    the goal if they are closer than that).  Candidate corners sit on two rings around each disk: n =
+    ``nodes_per_disk`` corners at radius (ρ + clearance)/cos(π/n), and 2n at (ρ + need)/cos(π/2n) for gaps
+    (between disks, or a disk and the rim) too narrow for the first; consecutive corners of a ring are joined by
+    chords tangent to its grown circle (so those chords keep exactly ``need``: the tests allow rounding,
+    :data:`_ROUND`).  Corners lie within ``need`` of the rim, and legs stay in the rim disk by convexity.  Raises
+    ValueError without a path.
+    """
+    s = np.asarray(start, dtype=float).reshape(2)
+    g = np.asarray(goal, dtype=float).reshape(2)
+    c = np.asarray(centers, dtype=float).reshape(-1, 2)
+    rho = np.asarray(radii, dtype=float).reshape(-1)
+    rc = np.asarray(rim_center, dtype=float).reshape(2)
+    for name, p in (("start", s), ("goal", g)):
+        if len(c) and np.any(np.linalg.norm(c - p, axis=1) <= rho):
+            raise ValueError(f"local path: the {name} ({p[0]:.3f}, {p[1]:.3f}) overlaps another entity")
+    if np.linalg.norm(g - rc) > rim_radius:
+        raise ValueError("local path: the goal is outside the region")
+    if len(c) == 0:
+        return g[None, :]
+
+    def own_clear(p):
+        return float(np.min(np.linalg.norm(c - p, axis=1) - rho))
+
+    need = min(0.5 * clearance, 0.5 * own_clear(s), 0.5 * own_clear(g))
+    corners = []
+    for n, offset in ((nodes_per_disk, clearance), (2 * nodes_per_disk, need)):
+        ang = np.arange(n) * (2.0 * math.pi / n)
+        ring = np.column_stack([np.cos(ang), np.sin(ang)]) / math.cos(math.pi / n)
+        corners.append((c[:, None, :] + (rho + offset)[:, None, None] * ring[None, :, :]).reshape(-1, 2))
+    corners = np.vstack(corners)
+    ok = np.linalg.norm(corners - rc, axis=1) <= rim_radius - need + _ROUND
+    ok &= np.all(np.linalg.norm(corners[:, None, :] - c[None, :, :], axis=-1) - rho[None, :] >= need - _ROUND,
+                 axis=1)
+    nodes = np.vstack([s, g, corners[ok]])
+    n = len(nodes)
+    i, j = np.triu_indices(n, 1)
+    dist = segment_distances(nodes[i], nodes[j], c)
+    free = np.all(dist - rho[None, :] >= need - _ROUND, axis=1)
+    W = np.zeros((n, n))
+    lengths = np.linalg.norm(nodes[j] - nodes[i], axis=1)
+    W[i[free], j[free]] = np.maximum(lengths[free], 1e-12)
+    W = W + W.T
+    best, pred = dijkstra(W, directed=False, indices=0, return_predecessors=True)
+    if not np.isfinite(best[1]):
+        raise ValueError("local path: no collision-free path inside the region between the start and the goal")
+    path, k = [], 1
+    while k != 0:
+        path.append(nodes[k])
+        k = pred[k]
+    return np.array(path[::-1])
+
+
+def free_space_parts(boundary: Polygon, static: Sequence[Polygon], disks: Sequence[tuple[Sequence[float], float]],
+                     radius: float, margin: float, safety: float) -> tuple[list[Polygon], list]:
+    """The components of the free space of an entity of ``radius`` (paper Sec. III-A): the boundary shrunk and
+    the ``static`` obstacles (walls, workspace obstacles, excluded regions) enlarged by radius + ``margin``, the
+    ``disks`` (other entities: centre, radius) by the radius, all arcs on the outside of their chords, then
+    eroded by ``safety`` (mitre joins).  Returns (components, enlarged obstacles: static first, then disks)."""
+    grow, grow_static = radius * _CHORD, (radius + margin) * _CHORD
+    shapes = list(static) + [disk(c, r) for c, r in disks]
+    enlarged = [g.buffer(grow_static if i < len(static) else grow, quad_segs=DISK_QUAD_SEGS)
+                for i, g in enumerate(shapes)]
+    inner = boundary.buffer(-grow_static, quad_segs=DISK_QUAD_SEGS)
+    free = inner.difference(unary_union(enlarged)) if enlarged else inner
+    if safety > 0.0:
+        free = free.buffer(-float(safety), join_style="mitre")
+    parts = list(free.geoms) if hasattr(free, "geoms") else ([free] if not free.is_empty else [])
+    return parts, enlarged

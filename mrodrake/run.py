@@ -30,7 +30,8 @@ def run_mission(scenario, plan=None, planner: str = "stylus", suffix_cycles: int
     if not isinstance(scenario, Scenario):
         scenario = load_scenario(scenario)
     if plan is None:
-        plan = plan_scenario(scenario, planner, seed=None if planner == "exact" else seed)
+        plan = plan_scenario(scenario, planner, seed=None if planner == "exact" else seed,
+                             suffix_cycles=suffix_cycles, layout_seed=seed)
     elif not hasattr(plan, "steps"):
         plan = load_plan(scenario, plan)
     if out_dir is not None:
@@ -68,7 +69,8 @@ def run(args: argparse.Namespace) -> int:
     t0 = time.perf_counter()
     if plan is None:
         print(f"planning {scenario.name} with {args.planner} ...", file=sys.stderr)
-        plan = plan_scenario(scenario, args.planner, seed=None if args.planner == "exact" else args.seed)
+        plan = plan_scenario(scenario, args.planner, seed=None if args.planner == "exact" else args.seed,
+                             suffix_cycles=args.suffix_cycles, layout_seed=args.seed)
     print(plan.summary(), file=sys.stderr)
     mission = Mission(scenario, plan, suffix_cycles=args.suffix_cycles, seed=args.seed)
 

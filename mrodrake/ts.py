@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import array
 import itertools
+import math
 import time
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
@@ -494,6 +495,10 @@ class TransitionSystem:
         for dests, keys in self.option_keys(s):
             yield dests, [pairs(k) for k in keys]
 
+    def candidate_count(self, s: State) -> int:
+        """How many candidate successors :meth:`build` enumerates at s (valid or not), without enumerating them."""
+        return sum(math.prod(len(p) for p in opts) for _, opts in self.options(s))
+
     def successor_states(self, s: State) -> Iterator[State]:
         """All s' with s → s' (implicit; never enumerates the whole TS)."""
         valid, fits = self.is_valid, self.step_fits
@@ -690,6 +695,21 @@ class ExplicitTS:
 
     def successors(self, u: int) -> np.ndarray:
         return self.targets[self.indptr[u] : self.indptr[u + 1]]
+
+    def without(self, pairs) -> ExplicitTS:
+        """This TS without the transitions between the state pairs ``pairs`` (both directions)."""
+        drop = set()
+        for a, b in pairs:
+            u, v = self.index.get(tuple(a)), self.index.get(tuple(b))
+            if u is not None and v is not None:
+                drop.update([(u, v), (v, u)])
+        if not drop:
+            return self
+        src = np.repeat(np.arange(self.num_states), np.diff(self.indptr))
+        keep = np.array([(int(u), int(v)) not in drop for u, v in zip(src, self.targets)], dtype=bool)
+        indptr = np.concatenate([[0], np.cumsum(np.bincount(src[keep], minlength=self.num_states))])
+        return ExplicitTS(self.ts, self.states, self.index, indptr.astype(self.indptr.dtype), self.targets[keep],
+                          self.costs[keep], self.build_seconds)
 
     def label_masks(self) -> np.ndarray:
         """L(s) bitmask for every state (Python ints may exceed 64 bits: object array)."""

@@ -47,7 +47,7 @@ def test_a_task_that_needs_the_blocked_transport_is_unsatisfiable_naming_it():
     sc = scenario_from_dict(two_rooms("F o1_p2"))
     for planner in ("exact", "stylus"):
         with pytest.raises(UserError) as e:
-            plan_scenario(sc, planner=planner, iterations=200, time_limit=5.0)
+            plan_scenario(sc, planner=planner, iterations=200)
         msg = str(e.value)
         assert "\n" not in msg
         assert "object o1 can never be carried to p2 from p1" in msg and "covering radius 1.90 m" in msg

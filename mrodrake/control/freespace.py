@@ -29,11 +29,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import shapely
-from shapely.geometry import MultiPolygon, Point, Polygon
-from shapely.ops import unary_union
+from shapely.geometry import Point, Polygon
 
 from mrodrake.errors import UserError
-from mrodrake.geometry import DISK_QUAD_SEGS, disk, polygon
+from mrodrake.geometry import DISK_QUAD_SEGS, disk, free_space_parts, polygon
 from mrodrake.packing import place
 from mrodrake.scenario import Scenario
 
@@ -111,22 +110,14 @@ def entity_free_space(
     goal = np.asarray(goal, dtype=float).reshape(2)
     if not (math.isfinite(margin) and margin >= 0.0):
         raise UserError(f"margin: must be a finite number >= 0, got {margin!r}")
-    grow, grow_static = r * _CHORD, (r + float(margin)) * _CHORD
     boundary = polygon(scenario.workspace.boundary)
     obstacles: list[tuple[str, Polygon]] = [(o.name, polygon(o.polygon)) for o in scenario.workspace.obstacles]
     for k, reg in enumerate(scenario.regions):
         if k not in (src, dst):
             obstacles.append((reg.name, disk(reg.center, reg.radius)))
-    n_static = len(obstacles)
-    for d in others:
-        obstacles.append((d.name, disk(d.center, d.radius)))
-    enlarged = [g.buffer(grow_static if i < n_static else grow, quad_segs=DISK_QUAD_SEGS)
-                for i, (_, g) in enumerate(obstacles)]
-    inner = boundary.buffer(-grow_static, quad_segs=DISK_QUAD_SEGS)
-    free = inner.difference(unary_union(enlarged)) if enlarged else inner
-    if safety > 0.0:
-        free = free.buffer(-float(safety), join_style="mitre")
-    parts = list(free.geoms) if isinstance(free, MultiPolygon) else ([free] if not free.is_empty else [])
+    parts, enlarged = free_space_parts(boundary, [g for _, g in obstacles], [(d.center, d.radius) for d in others],
+                                       r, float(margin), safety)
+    obstacles += [(d.name, disk(d.center, d.radius)) for d in others]
     p_start, p_goal = Point(start), Point(goal)
     comp = next((p for p in parts if p.contains(p_start)), None)
     if comp is None:

@@ -107,3 +107,9 @@ class WordMonitor:
 
     def contains(self, q: int) -> bool:
         return bool(self.run >> q & 1)
+
+    def admits(self, q) -> bool:
+        """Is the executed word one the plan was verified for at a node whose NBA side is ``q``: a state of the
+        run, or a word family (:class:`~mrodrake.planning.universal.Family`) some member of which the run
+        holds?"""
+        return q.admits(self.run) if hasattr(q, "admits") else self.contains(q)

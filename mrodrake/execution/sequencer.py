@@ -10,7 +10,7 @@ A Drake system only has to carry this state and route it to ports
 
 Each primitive is a small state machine (:class:`Phase`) over an :class:`Active` value: a room move, release
 (disengage the team plant, back off), grasp (dock), navigation or transport (engage the team plant, go).  Its
-end point comes from the plan-wide placement (:mod:`mrodrake.execution.placement`).  Motions use the paper's
+end point comes from the plan-wide placement (:mod:`mrodrake.planning.placement`).  Motions use the paper's
 adaptive law on the point-world map of the entity's free space, and the identity-map local law for docking,
 backing off, room moves, the last part of every navigation or transport inside the *approach disk* of the
 target region and, from a start nearer than :data:`EXIT_CLEARANCE` to another entity, its first part (exit legs
@@ -49,9 +49,9 @@ from mrodrake.control.windows import (
 from mrodrake.errors import UserError
 from mrodrake.execution.commands import PrimitiveRecord, SyncCommand, TaskCommand
 from mrodrake.execution.monitor import WordMonitor, entity_regions, label_of
-from mrodrake.execution.placement import OpKind, PlacedOp, Placement, layout_slots
-from mrodrake.execution.steps import StepSpec
 from mrodrake.geometry import polygon, workspace_free_space
+from mrodrake.planning.placement import OpKind, PlacedOp, Placement, layout_slots
+from mrodrake.planning.steps import StepSpec
 from mrodrake.ts import Transport
 
 #: Speed (m/s) under which an arrived entity counts as at rest (then parked).
@@ -304,7 +304,7 @@ class Sequencer:
     def _end_step(self, ed: _Edit, X: np.ndarray) -> None:
         spec = self.steps[ed.step_idx]
         ed.monitor.end_step()
-        if not ed.monitor.contains(spec.dst_q):
+        if not ed.monitor.admits(spec.dst_q):
             raise _Failure(f"step {spec.index}: the monitored NBA run {ed.monitor.states} does not contain the "
                            f"plan's NBA state {spec.dst_q}")
         got = self.discrete_state(ed.freeze(), X)

@@ -1,18 +1,20 @@
-"""Deciding satisfiability before sampling: the default planner's three answers.
+"""Deciding satisfiability: the unsatisfiability proofs of the default planner.
 
-``plan_scenario(..., planner="stylus")`` answers with a verified plan, "task is unsatisfiable: <reason>"
-(UserError, exit status 2) or "no plan found within the budget; satisfiability unknown" (NoPlanFound, exit
-status 3).  Before STyLuS* samples, :func:`decide` tries, cheapest first:
+``plan_scenario(..., planner="stylus")`` answers with a verified plan whose executed run places, "task is
+unsatisfiable: <reason>" (UserError, exit status 2) or "no plan found ...; satisfiability unknown"
+(NoPlanFound, exit status 3).  "Unsatisfiable" comes only from an over-approximation of what execution can do;
+when STyLuS* finds no plan within its iterations, :func:`decide` tries, cheapest first:
 
-1. the static checks: the NBA has no accepting cycle over labels the TS can produce
-   (:func:`~mrodrake.planning.product.prune_nba`), and an object that must move but no team can move
-   (:func:`~mrodrake.planning.exact.check_power`);
-2. the sound relaxations of :mod:`mrodrake.planning.relax` (each entity alone, pairs, all mentioned
-   entities moving independently without packing, Λ or grasps);
-3. the exact decision on the explicit product when it is small: the bound ``K^(N+M) (M+1)^N`` on the TS
-   states times the useful NBA states is at most :data:`EXACT_BOUND`, and then the reachable TS has at most
-   :data:`EXACT_EDGES` / (useful NBA states) transitions (about a second here).  Its optimal plan is kept and
-   returned if STyLuS* finds none within its budget.
+1. the sound relaxations of :mod:`mrodrake.planning.relax` (each entity alone, pairs, all mentioned
+   entities moving independently without packing, Λ or grasps; power-aware team radii);
+2. the interval product on the explicit TS (:mod:`mrodrake.planning.interval`: every step reads its source
+   label and then any letters between its source and target labels), when the reachable TS has at most
+   :data:`EXPLICIT_STATES` states and :data:`EXPLICIT_TRANSITIONS` transitions;
+3. the exact planner when the reachable TS transitions × useful NBA states are at most :data:`EXACT_EDGES`:
+   :func:`~mrodrake.planning.exact.solve_exact` finds the optimal plan on the planning product, then on the
+   word-family product (:mod:`mrodrake.planning.universal`), and otherwise decides with the over-approximating
+   lattice product or, for a deterministic NBA, the word-family product itself.  Its plan is returned if
+   STyLuS* finds none within its budget.
 """
 
 from __future__ import annotations
@@ -20,23 +22,30 @@ from __future__ import annotations
 import time
 from dataclasses import dataclass, field
 
-from mrodrake.errors import UserError
+from mrodrake.errors import NoPlanFound, UserError
 from mrodrake.logic.nba import NBA
 from mrodrake.planning.exact import ExactResult, blocked_note, solve_exact
-from mrodrake.planning.product import prune_nba, useful_states
+from mrodrake.planning.interval import interval_accepts
+from mrodrake.planning.product import planning_nba, useful_states
 from mrodrake.planning.relax import Relaxations
-from mrodrake.ts import TransitionSystem
+from mrodrake.ts import State, TransitionSystem
 
-#: Exact decision only if K^(N+M) (M+1)^N × useful NBA states is at most this.
+#: The graph planner decides exactly when its joint states × NBA states are at most this.
 EXACT_BOUND = 100_000
-#: ... and the reachable TS transitions × useful NBA states at most this.
+#: The exact planner runs when the reachable TS transitions × useful NBA states are at most this.
 EXACT_EDGES = 1_000_000
+#: The explicit TS (interval product, exact planner) is built up to this many reachable states ...
+EXPLICIT_STATES = 60_000
+#: ... and used up to this many transitions.
+EXPLICIT_TRANSITIONS = 6_000_000
+#: ... and only when the candidate successors of the initial state × the state limit are at most this.
+EXPLICIT_WORK = 200_000_000
 
 
 @dataclass
 class Decision:
-    """What :func:`decide` found out: ``exact`` is the optimal plan when the exact search ran (satisfiable);
-    ``undecided`` says why the exact search did not run."""
+    """What :func:`decide` found out: ``exact`` is the optimal plan when the exact search ran and found one;
+    ``undecided`` says why no verdict was reached."""
 
     exact: ExactResult | None = None
     undecided: str = ""
@@ -48,33 +57,49 @@ def ts_state_bound(ts: TransitionSystem) -> int:
     return ts.K ** (ts.N + ts.M) * (ts.M + 1) ** ts.N
 
 
-def decide(ts: TransitionSystem, nba: NBA, relevant: int, relax_seconds: float = 1.0,
-           exact_bound: int = EXACT_BOUND, exact_edges: int = EXACT_EDGES) -> Decision:
-    """Raise UserError("task is unsatisfiable: ...") when a relaxation or the exact search proves it;
-    otherwise the :class:`Decision` (see the module docstring)."""
+def decide(ts: TransitionSystem, nba: NBA, relevant: int, relax_seconds: float = 5.0, exact_edges: int = EXACT_EDGES,
+           banned: tuple[tuple[State, State], ...] = ()) -> Decision:
+    """Raise UserError("task is unsatisfiable: ...") when a relaxation or the over-approximating product
+    proves it; otherwise the :class:`Decision` (module docstring).  ``banned``: TS transitions the exact
+    plan must avoid (placement rejected them); they never enter a proof."""
     t0 = time.perf_counter()
     relax = Relaxations(ts, nba, relevant)
     proof = relax.prove(relax_seconds)
     stats = dict(relax.stats)
     if proof is not None:
         raise UserError(proof + blocked_note(ts))
-    q = len(useful_states(prune_nba(nba, ts, transit=True)))
-    bound = ts_state_bound(ts) * max(q, 1)
-    stats["exact_bound"] = bound
+    small = planning_nba(nba, ts)
+    q = len(useful_states(small))
     out = Decision(stats=stats)
-    if bound > exact_bound:
-        out.undecided = (f"the explicit product is too large to decide (up to {bound:.1e} states: "
-                         f"{ts_state_bound(ts):.1e} TS states × {q} NBA states) and no relaxation proves the task "
+    ets = None
+    if ts.candidate_count(ts.initial) * min(ts_state_bound(ts), EXPLICIT_STATES) <= EXPLICIT_WORK:
+        try:
+            ets = ts.build(max_states=EXPLICIT_STATES)
+        except RuntimeError:
+            pass
+    if ets is None or ets.num_transitions > EXPLICIT_TRANSITIONS:
+        size = (f"beyond {EXPLICIT_STATES} reachable TS states or their successors" if ets is None else
+                f"{ets.num_transitions} TS transitions, more than {EXPLICIT_TRANSITIONS}")
+        out.undecided = (f"the explicit TS is too large to decide ({size}) and no relaxation proves the task "
                          "unsatisfiable")
+        stats["decide_seconds"] = time.perf_counter() - t0
+        return out
+    stats.update(ts_states=ets.num_states, ts_transitions=ets.num_transitions)
+    if not interval_accepts(ts, small, relevant, ets):
+        raise UserError(f"task is unsatisfiable: no accepting cycle is reachable in the interval product of the "
+                        f"TS ({ets.num_states} states, {ets.num_transitions} transitions) and the NBA "
+                        f"({nba.num_states} states): no execution, in any order and crossing interleaving, produces "
+                        "a word the task accepts" + blocked_note(ts))
+    edges = ets.num_transitions * q
+    stats["exact_edges"] = edges
+    if edges > exact_edges:
+        out.undecided = (f"the explicit product is too large to decide exactly ({ets.num_states} TS states, "
+                         f"{ets.num_transitions} transitions × {q} NBA states) and neither a relaxation nor the "
+                         "interval product proves the task unsatisfiable")
     else:
-        ets = ts.build()
-        edges = ets.num_transitions * q
-        stats["exact_edges"] = edges
-        if edges > exact_edges:
-            out.undecided = (f"the explicit product is too large to decide ({ets.num_states} TS states, "
-                             f"{ets.num_transitions} transitions × {q} NBA states) and no relaxation proves the "
-                             "task unsatisfiable")
-        else:
-            out.exact = solve_exact(ts, nba, relevant, ets=ets)
+        try:
+            out.exact = solve_exact(ts, nba, relevant, ets=ets, banned=banned)
+        except NoPlanFound as e:
+            out.undecided = str(e)
     stats["decide_seconds"] = time.perf_counter() - t0
     return out

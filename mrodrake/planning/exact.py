@@ -28,11 +28,12 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import scipy.sparse as sp
-from scipy.sparse.csgraph import connected_components, dijkstra
 
-from mrodrake.errors import UserError
+from mrodrake.errors import NoPlanFound, UserError
 from mrodrake.logic.nba import NBA
-from mrodrake.planning.product import Product, prune_nba, useful_states
+from mrodrake.planning.interval import interval_accepts
+from mrodrake.planning.product import Product, optimal_lasso, prune_nba, restrict_nba, useful_states
+from mrodrake.planning.universal import is_deterministic, solve_families
 from mrodrake.ts import ExplicitTS, TransitionSystem
 
 
@@ -128,27 +129,13 @@ def blocked_note(ts: TransitionSystem) -> str:
     return "; blocked: " + "; ".join(lines) if lines else ""
 
 
-def restrict_nba(nba: NBA, keep) -> NBA:
-    """The NBA with every edge into or out of a state outside ``keep`` removed (numbering kept)."""
-    keep = set(keep)
-    edges = [[(g, d) for g, d in row if q in keep and d in keep] for q, row in enumerate(nba.edges)]
-    return NBA(nba.ap, nba.initial, nba.accepting, edges)
-
-
-def _path(pred: np.ndarray, src: int, dst: int) -> list[int]:
-    out = [dst]
-    while out[-1] != src:
-        p = int(pred[out[-1]])
-        if p < 0:
-            raise RuntimeError("broken predecessor chain")
-        out.append(p)
-    return out[::-1]
-
-
 def solve_exact(ts: TransitionSystem, nba: NBA, relevant: int,
-                progress: Callable[[str], None] | None = None, ets: ExplicitTS | None = None) -> ExactResult:
+                progress: Callable[[str], None] | None = None, ets: ExplicitTS | None = None,
+                banned=()) -> ExactResult:
     """Optimal prefix-suffix plan on the executed-word semantics (``relevant``: the task's AP_φ mask; see the
-    module docstring); UserError when the task is unsatisfiable.  ``ets``: the explicit TS if already built."""
+    module docstring).  Without one, the over-approximating product decides: UserError when it has no
+    accepting cycle either (the task is unsatisfiable), else NoPlanFound.  ``ets``: the explicit TS if already
+    built; ``banned``: TS transitions (state pairs, both directions) the plan must not use."""
     t0 = time.perf_counter()
     check_power(ts, nba)
     pruned = prune_nba(nba, ts, transit=True)
@@ -165,23 +152,16 @@ def solve_exact(ts: TransitionSystem, nba: NBA, relevant: int,
         ets = ts.build()
     if progress:
         progress("building the product")
-    ep = product.build(ets)
+    ep = product.build(ets.without(banned))
     g = ep.graph
     n = ep.num_nodes
     stats.update(ts_states=ets.num_states, ts_transitions=ets.num_transitions, product_nodes=n,
                  product_edges=ep.num_edges, build_seconds=time.perf_counter() - t0)
     if progress:
         progress("shortest paths from the initial state")
-    unsat = (f"task is unsatisfiable: no accepting cycle is reachable in the product of the TS "
-             f"({ets.num_states} states, {ets.num_transitions} transitions) and the NBA "
-             f"({nba.num_states} states); searched all {{}} reachable product states")
     found = optimal_lasso(g, ep.initial, ep.accepting_mask(), stats)
     if found is None:
-        unsat = unsat.format(stats["product_reachable_nodes"])
-        stuck = immovable_objects(ts)
-        if stuck:
-            unsat += "; immovable objects: " + ", ".join(ts.object_names[j] for j in sorted(stuck))
-        raise UserError(unsat + blocked_note(ts))
+        return _without_common_states(ts, nba, small, product, ets, banned, stats, progress, t0)
     prefix_ids, suffix_ids = found
     node = ep.node
     prefix = [node(v) for v in prefix_ids]
@@ -192,55 +172,49 @@ def solve_exact(ts: TransitionSystem, nba: NBA, relevant: int,
     return ExactResult(prefix, suffix, pc, sc, stats)
 
 
-def optimal_lasso(g: sp.csr_matrix, initial: int, accepting: np.ndarray, stats: dict) -> tuple[list, list] | None:
-    """Node ids of the cheapest lasso of the weighted graph ``g`` from ``initial`` through an ``accepting``
-    node (prefix before it, non-empty cycle from it), or None when no accepting node reachable from
-    ``initial`` lies on a cycle (steps 2-4 of the module docstring; sizes go into ``stats``)."""
-    d0, pred0 = dijkstra(g, directed=True, indices=initial, return_predecessors=True)
-    reach = np.isfinite(d0)
-    stats["product_reachable_nodes"] = int(reach.sum())
-    acc = np.flatnonzero(accepting & reach)
-    ncomp, comp = connected_components(g, directed=True, connection="strong")
-    sizes = np.bincount(comp, minlength=ncomp)
-    ind, ptr, w = g.indices, g.indptr, g.data
-    self_loop = np.array([a in ind[ptr[a]:ptr[a + 1]] for a in acc], dtype=bool)
-    acc = acc[(sizes[comp[acc]] > 1) | self_loop]
-    if len(acc) == 0:
-        return None
-    gt = g.T.tocsr()
-    dA = dijkstra(gt, directed=True, indices=acc, min_only=True)
-    # LB(a) = min over edges a -> y of chi(a, y) + d(y, A)
-    lb = np.full(len(acc), np.inf)
-    for k, a in enumerate(acc):
-        lo, hi = ptr[a], ptr[a + 1]
-        if hi > lo:
-            lb[k] = float(np.min(w[lo:hi] + dA[ind[lo:hi]]))
-    order = np.lexsort((acc, d0[acc] + lb))
-    best, best_a, best_cycle = np.inf, -1, None
-    cycles = 0
-    tin_ptr, tin_ind, tin_w = gt.indptr, gt.indices, gt.data
-    for k in order:
-        a = int(acc[k])
-        if d0[a] + lb[k] >= best:
-            break
-        limit = best - d0[a]
-        dist, pred = dijkstra(g, directed=True, indices=a, return_predecessors=True, limit=limit)
-        cycles += 1
-        lo, hi = tin_ptr[a], tin_ptr[a + 1]
-        preds = tin_ind[lo:hi]
-        tot = dist[preds] + tin_w[lo:hi]
-        if len(tot) == 0:
-            continue
-        i = int(np.argmin(tot))
-        c = float(tot[i])
-        if d0[a] + c < best:
-            p = int(preds[i])
-            best, best_a = float(d0[a] + c), a
-            best_cycle = _path(pred, a, p) if p != a else [a]
-    stats.update(accepting_candidates=int(len(acc)), cycle_searches=cycles)
-    if best_a < 0:
-        return None
-    return _path(pred0, initial, best_a)[:-1], best_cycle
+def _unsat(ts: TransitionSystem, what: str) -> UserError:
+    stuck = immovable_objects(ts)
+    note = "; immovable objects: " + ", ".join(ts.object_names[j] for j in sorted(stuck)) if stuck else ""
+    return UserError("task is unsatisfiable: " + what + note + blocked_note(ts))
+
+
+def _without_common_states(ts, nba, small, product, ets, banned, stats, progress, t0):
+    """The planning product has no lasso: decide on the over-approximations, or plan on word families."""
+    sizes = f"TS ({ets.num_states} states, {ets.num_transitions} transitions) and the NBA ({nba.num_states} states)"
+    if progress:
+        progress("checking the interval product")
+    if not interval_accepts(ts, small, product.words.relevant, ets):
+        raise _unsat(ts, f"no accepting cycle is reachable in the interval product of the {sizes}: no execution, "
+                         "in any order and crossing interleaving, produces a word the task accepts")
+    if progress:
+        progress("searching the word-family product")
+    try:
+        fam = solve_families(ts, product.words, ets.without(banned))
+    except MemoryError as e:
+        raise NoPlanFound(f"no plan found: the task is accepted only on some crossing interleavings and the "
+                          f"{e}; satisfiability unknown") from None
+    stats.update(fam.stats)
+    if fam.suffix:
+        fam.stats = {**stats, "seconds": time.perf_counter() - t0}
+        return fam
+    if banned:
+        raise NoPlanFound(f"no plan found: every plan of the exact planner needs one of the {len(banned)} steps "
+                          "placement rejected; satisfiability unknown")
+    if is_deterministic(small) and not fam.stats["family_orders_truncated"]:
+        raise _unsat(ts, f"for every plan some executed word violates the task (the word-family product of the "
+                         f"{sizes}, deterministic, has no accepting cycle: every TS run the task could accept needs "
+                         "a crossing order that execution does not control)")
+    if progress:
+        progress("checking the lattice product")
+    some = product.build(ets, some=True)
+    if not some.has_accepting_cycle():
+        raise _unsat(ts, f"no accepting cycle is reachable in the product of the {sizes} over every execution "
+                         f"order and crossing interleaving; searched all {int(some.reachable().sum())} reachable "
+                         "product states")
+    raise NoPlanFound(
+        "no plan found: the task is accepted only on some crossing interleavings of the TS runs that reach an "
+        f"accepting cycle, and no plan of the word-family product ({fam.stats['family_nodes']} nodes) accepts "
+        "every interleaving; satisfiability unknown (the NBA is not deterministic)")
 
 
 def solve_exact_graph(ts, nba: NBA, relevant: int, max_states: int = 200_000) -> ExactResult:

@@ -31,7 +31,9 @@ JSON schema (``Plan.to_json``), version 2 (version 1 plans read labels only and 
       "stats": {...}                            # planner statistics (sizes, timings), informative
     }
     STATE  = {"robots": {"r1": "p1", ...}, "objects": {"o1": "p2", ...},
-              "grasps": {"r1": "o1" | null, ...}, "nba": <NBA state id>}
+              "grasps": {"r1": "o1" | null, ...}, "nba": NBA}
+    NBA    = <NBA state id>                   # planning product: one state reached on every interleaving
+           | {"members": [[[S0 ids], [S1 ids]], ...], "accepting": bool}   # word-family product
     ACTION = {"type": "navigate", "robot": "r1", "from": "p1", "to": "p3", ...}
            | {"type": "grasp", "robot": "r1", "object": "o1", ...}
            | {"type": "release", "robot": "r1", "object": "o1", ...}
@@ -62,8 +64,11 @@ from mrodrake.planning.decide import EXACT_BOUND, decide
 from mrodrake.planning.exact import check_power, solve_exact, solve_exact_graph
 from mrodrake.planning.graph import GraphTS, load_graph_ts
 from mrodrake.planning.graph_stylus import GraphStrategy
+from mrodrake.planning.placement import PlacementError, place_plan
+from mrodrake.planning.product import planning_nba
 from mrodrake.planning.semantics import ExecutedWords, SourceWords, relevant_mask, words_for
 from mrodrake.planning.stylus import Stylus
+from mrodrake.planning.universal import Family, FamilyResult, FamilyWords
 from mrodrake.scenario import Scenario, load_scenario
 from mrodrake.ts import Action, Grasp, Navigate, Release, State, TransitionSystem, Transport
 
@@ -89,6 +94,8 @@ class Plan:
     step_costs: list[float]
     ts: TransitionSystem | None = field(default=None, repr=False, compare=False)
     stats: dict = field(default_factory=dict, compare=False)
+    #: The placement that accepted the plan (:func:`~mrodrake.planning.placement.place_plan`), when planned here.
+    placement: object = field(default=None, repr=False, compare=False)
 
     # ------------------------------------------------------------------------------------ construction
     @staticmethod
@@ -110,6 +117,21 @@ class Plan:
         costs = [ts.cost(a[0], b[0]) for a, b in zip(run, nxt)]
         return Plan(scenario, formula, planner, seed, [(tuple(s), int(q)) for s, q in prefix],
                     [(tuple(s), int(q)) for s, q in suffix], actions, costs, ts, dict(stats or {}))
+
+    @staticmethod
+    def from_families(ts: TransitionSystem, scenario: str, formula: str, planner: str, seed: int | None,
+                      res: FamilyResult, stats: dict | None = None) -> Plan:
+        """A plan of the word-family product (:mod:`mrodrake.planning.universal`): its nodes carry families."""
+        run = list(res.prefix) + list(res.suffix)
+        nxt = run[1:] + [res.suffix[0]]
+        costs = [ts.cost(a[0], b[0]) for a, b in zip(run, nxt)]
+        return Plan(scenario, formula, planner, seed, [(tuple(x), F) for x, F in res.prefix],
+                    [(tuple(x), F) for x, F in res.suffix], list(res.orders), costs, ts, dict(stats or {}))
+
+    @property
+    def families(self) -> bool:
+        """Are the NBA sides of the run families (word-family product) rather than single states?"""
+        return any(isinstance(q, Family) for _, q in self.prefix + self.suffix)
 
     # ------------------------------------------------------------------------------------ properties
     @property
@@ -158,16 +180,22 @@ class Plan:
         run = self.run
         if run[0][0] != ts.initial:
             raise PlanVerificationError("the run does not start in the TS's initial state")
-        if run[0][1] != nba.initial:
+        family = self.families
+        start = Family.of_state(nba.initial) if family else nba.initial
+        if run[0][1] != start:
             raise PlanVerificationError("the NBA run does not start in the NBA's initial state")
         if len(self.actions) != len(run) or len(self.step_costs) != len(run):
             raise PlanVerificationError("actions/costs do not have one entry per step")
         for k, (s, q) in enumerate(run):
             if not ts.is_valid(s):
                 raise PlanVerificationError(f"run state {k + 1} is not a valid TS state")
-            if not 0 <= q < nba.num_states:
+            if family and not isinstance(q, Family):
+                raise PlanVerificationError(f"run state {k + 1}: a family plan needs a family at every state")
+            if not family and not 0 <= q < nba.num_states:
                 raise PlanVerificationError(f"run state {k + 1}: NBA state {q} out of range")
-        words = words_for(ts, nba, relevant_mask(ts, formula))
+        relevant = relevant_mask(ts, formula)
+        words = words_for(ts, nba, relevant)
+        fam = FamilyWords(ExecutedWords(ts, planning_nba(nba, ts), relevant)) if family else None
         for step, part, _i, _j, a, b, acts, cost in self.steps():
             why = ts.check_transition(a[0], b[0])
             if why is not None:
@@ -177,13 +205,18 @@ class Plan:
             if _phase_rank(acts) != sorted(_phase_rank(acts)):
                 raise PlanVerificationError(f"step {step} ({part}): releases and grasps must come before the "
                                             "region-changing actions")
-            if not words.reached(1 << a[1], a[0], b[0], acts) >> b[1] & 1:
+            if family:
+                if fam.execute(a[1], a[0], b[0], acts) != b[1]:
+                    raise PlanVerificationError(f"step {step} ({part}): executed in its order, the step does not "
+                                                "lead to the stored word family")
+            elif not words.reached(1 << a[1], a[0], b[0], acts) >> b[1] & 1:
                 raise PlanVerificationError(f"step {step} ({part}): executed in its order, some crossing "
                                             f"interleaving does not take the NBA from {a[1]} to {b[1]}")
             if not math.isclose(cost, ts.cost(a[0], b[0]), rel_tol=1e-9, abs_tol=1e-9):
                 raise PlanVerificationError(f"step {step} ({part}): stored cost differs from χ")
-        if not any(q in nba.accepting for _, q in self.suffix):
-            raise PlanVerificationError("the suffix visits no accepting NBA state")
+        if not any(q.accepting if family else q in nba.accepting for _, q in self.suffix):
+            raise PlanVerificationError("the suffix visits no accepting NBA state" + (" (no breakpoint)" if family
+                                                                                      else ""))
         steps = [(a[0], b[0], acts) for _, _, _, _, a, b, acts, _ in self.steps()]
         if not words.check_plan(formula, steps, len(self.prefix)):
             raise PlanVerificationError("some word that executing the plan can produce violates the formula")
@@ -214,7 +247,8 @@ class Plan:
         ts = self._ts()
 
         def state(node):
-            return {**ts.state_dict(node[0]), "nba": int(node[1])}
+            q = node[1]
+            return {**ts.state_dict(node[0]), "nba": q.to_dict() if isinstance(q, Family) else int(q)}
 
         steps = []
         for step, part, i, j, _a, _b, acts, cost in self.steps():
@@ -258,7 +292,8 @@ class Plan:
 
         def node(d, where):
             try:
-                return ts.state_from_dict(d), int(d["nba"])
+                q = d["nba"]
+                return ts.state_from_dict(d), Family.from_dict(q) if isinstance(q, dict) else int(q)
             except (KeyError, TypeError, ValueError) as e:
                 raise UserError(f"{source}: {where}: malformed state ({type(e).__name__}: {e})") from None
 
@@ -359,51 +394,113 @@ def _check_budget(planner: str, iterations: int | None, time_limit: float | None
         raise UserError(f"--time-limit: must be > 0, got {time_limit}")
 
 
+#: Candidate plans the placement may reject before planning gives up (each rejection bans one TS transition).
+MAX_REFINEMENTS = 16
+#: Without a plan after ``iterations`` and without a verdict, STyLuS* samples up to this many times as long.
+EXTEND_FACTOR = 10
+
+
 def plan_scenario(scenario, planner: str = "stylus", seed: int | None = None, iterations: int | None = None,
                   time_limit: float | None = None, progress: Callable[[dict], None] | None = None,
-                  replan: bool = True) -> Plan:
+                  replan: bool = True, suffix_cycles: int = 1, layout_seed: int | None = None,
+                  place: bool = True) -> Plan:
     """Plan a scenario (a :class:`~mrodrake.scenario.Scenario` or a YAML path) and return the verified plan.
 
     ``planner="stylus"``: STyLuS* with ``seed`` (default ``planning.seed``) for ``iterations`` (default
     ``planning.iterations``) or ``time_limit`` seconds; ``"exact"``: optimal plan on the explicit product.
-    Both plan on the executed-word semantics.  Before STyLuS* samples, :func:`~mrodrake.planning.decide.decide`
-    tries to prove the task unsatisfiable (relaxations; the exact search when the product is small, whose
-    plan is returned if STyLuS* finds none).  Unsatisfiable tasks and objects no team can move raise a
-    one-line UserError; a budget that runs out undecided raises NoPlanFound (a UserError).  ``replan=False``:
-    STyLuS* without the exact re-planning of its best lassos (the sampled lasso).  BLAS runs single-threaded
+    Both plan on the executed-word semantics.  A plan is returned only when its executed run (the prefix and
+    ``suffix_cycles`` suffix cycles) places (:func:`~mrodrake.planning.placement.place_plan` with
+    ``layout_seed``, default the planner's seed or 0: what ``Mission(seed=...)`` uses); a plan placement
+    rejects bans the step that failed and the planner searches again (``place=False``: no placement).
+    When STyLuS* finds no plan within ``iterations``, :func:`~mrodrake.planning.decide.decide` tries to prove
+    the task unsatisfiable (relaxations; the exact search when the product is small, whose plan is used), and
+    otherwise STyLuS* samples up to :data:`EXTEND_FACTOR` times as long.  Unsatisfiable tasks raise a
+    one-line UserError; a budget that runs out undecided raises NoPlanFound (a UserError, exit status 3).
+    ``replan=False``: STyLuS* without the exact re-planning of its best lassos.  BLAS runs single-threaded
     meanwhile (as in :meth:`~mrodrake.systems.mission.Mission.run`): the plan does not depend on the core count.
     """
     with threadpool_limits(limits=1, user_api="blas"):
-        return _plan_scenario(scenario, planner, seed, iterations, time_limit, progress, replan)
+        return _plan_scenario(scenario, planner, seed, iterations, time_limit, progress, replan, suffix_cycles,
+                              layout_seed, place)
 
 
-def _plan_scenario(scenario, planner, seed, iterations, time_limit, progress, replan) -> Plan:
+def _plan_scenario(scenario, planner, seed, iterations, time_limit, progress, replan, suffix_cycles,
+                   layout_seed, place) -> Plan:
     if not isinstance(scenario, Scenario):
         scenario = load_scenario(scenario)
     _check_budget(planner, iterations, time_limit)
+    if suffix_cycles < 0:
+        raise UserError(f"suffix_cycles: must be >= 0, got {suffix_cycles}")
     t0 = time.perf_counter()
     ts = TransitionSystem(scenario)
     formula, nba, words = task_words(scenario, ts)
     check_power(ts, nba)
+    used_seed = None if planner == "exact" else (scenario.planning.seed if seed is None else int(seed))
+    its = scenario.planning.iterations if iterations is None else int(iterations)
+    lay_seed = int(layout_seed) if layout_seed is not None else (used_seed or 0)
+    report = (lambda msg: progress({"message": msg})) if progress else None
+    banned: list[tuple[State, State]] = []
+    rejected: list[str] = []
     decision = None
-    if planner == "exact":
-        res = solve_exact(ts, nba, words.relevant,
-                          progress=(lambda msg: progress({"message": msg})) if progress else None)
-        used_seed = None
-    else:
-        if progress:
-            progress({"message": "deciding satisfiability"})
-        decision = decide(ts, nba, words.relevant)
-        used_seed = scenario.planning.seed if seed is None else int(seed)
-        its = scenario.planning.iterations if iterations is None else int(iterations)
+    while True:
+        name, s_seed = planner, used_seed
+        if planner == "exact":
+            res = solve_exact(ts, nba, words.relevant, progress=report, banned=tuple(banned))
+        else:
+            try:
+                res = Stylus(ts, nba, words.relevant, seed=used_seed, replan=replan, banned=banned).run(
+                    its, time_limit=time_limit, progress=progress)
+            except NoPlanFound as first:
+                if report:
+                    report("deciding satisfiability")
+                if decision is None or decision.exact is not None and banned:
+                    decision = decide(ts, nba, words.relevant, banned=tuple(banned))
+                if decision.exact is not None:
+                    res, name, s_seed = decision.exact, "exact", None
+                    res.stats["stylus"] = f"{first}; the exact planner found this plan"
+                else:
+                    try:
+                        res = Stylus(ts, nba, words.relevant, seed=used_seed, replan=replan, banned=banned).run(
+                            its, time_limit=time_limit, progress=progress, extend_iterations=EXTEND_FACTOR * its)
+                    except NoPlanFound as e:
+                        raise NoPlanFound(f"{e}; {decision.undecided}" + _rejections(rejected)) from None
+        plan = _make_plan(ts, scenario, formula, nba, words, name, s_seed, res, decision, t0)
+        if not place:
+            return plan
         try:
-            res = Stylus(ts, nba, words.relevant, seed=used_seed, replan=replan).run(its, time_limit=time_limit,
-                                                                                     progress=progress)
-        except NoPlanFound as e:
-            if decision.exact is None:
-                raise NoPlanFound(f"{e}; {decision.undecided}") from None
-            res, planner, used_seed = decision.exact, "exact", None
-            res.stats["stylus"] = f"{e}; the exact planner found this plan"
+            placement = place_plan(plan, suffix_cycles, seed=lay_seed)
+        except PlacementError as e:
+            edge = _rejected_step(plan, e)
+            rejected.append(str(e))
+            if edge is None or edge in banned or len(rejected) > MAX_REFINEMENTS:
+                raise NoPlanFound(f"no plan found whose executed run places: placement rejected {len(rejected)} "
+                                  f"plans (last: {e}); satisfiability unknown") from None
+            banned.append(edge)
+            if report:
+                report(f"placement rejected a plan ({e}); planning again without that step")
+            continue
+        plan.placement = placement
+        plan.stats["placement"] = {"seed": lay_seed, "suffix_cycles": suffix_cycles, "rejected": rejected}
+        plan.stats["total_seconds"] = time.perf_counter() - t0
+        return plan
+
+
+def _rejections(rejected: list[str]) -> str:
+    return f"; placement rejected {len(rejected)} plans (last: {rejected[-1]})" if rejected else ""
+
+
+def _rejected_step(plan: Plan, e: PlacementError) -> tuple[State, State] | None:
+    """The TS transition to ban after a placement failure: the failed step's (the first step that changes
+    grasps or regions when the initial layout failed), or None for an all-idle run."""
+    if e.step is not None:
+        return (tuple(e.step.src), tuple(e.step.dst))
+    for _step, _part, _i, _j, a, b, _acts, _cost in plan.steps():
+        if a[0] != b[0]:
+            return (tuple(a[0]), tuple(b[0]))
+    return None
+
+
+def _make_plan(ts, scenario, formula, nba, words, planner, seed, res, decision, t0) -> Plan:
     stats = dict(res.stats)
     if decision is not None:
         stats["decide"] = decision.stats
@@ -412,8 +509,10 @@ def _plan_scenario(scenario, planner, seed, iterations, time_limit, progress, re
     stats["nba_states"] = nba.num_states
     stats["nba_edges"] = nba.num_edges
     stats["total_seconds"] = time.perf_counter() - t0
-    plan = Plan.from_runs(ts, scenario.name, str(formula), planner, used_seed, res.prefix, res.suffix, words,
-                          stats)
+    if isinstance(res, FamilyResult):
+        plan = Plan.from_families(ts, scenario.name, str(formula), planner, seed, res, stats)
+    else:
+        plan = Plan.from_runs(ts, scenario.name, str(formula), planner, seed, res.prefix, res.suffix, words, stats)
     plan.verify(ts, nba, formula)
     return plan
 
@@ -451,7 +550,8 @@ def plan_graph(ts, formula: str | None = None, planner: str = "stylus", seed: in
         used_seed = ts.scenario.planning.seed if seed is None else int(seed)
         its = ts.scenario.planning.iterations if iterations is None else int(iterations)
         try:
-            res = Stylus(ts, nba, words.relevant, seed=used_seed).run(its, time_limit=time_limit, progress=progress)
+            res = Stylus(ts, nba, words.relevant, seed=used_seed).run(
+                its, time_limit=time_limit, progress=progress, extend_iterations=EXTEND_FACTOR * its)
         except NoPlanFound as e:
             if exact is None:
                 raise NoPlanFound(f"{e}; the explicit product is too large to decide (up to {bound:.1e} joint "

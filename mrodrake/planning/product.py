@@ -25,7 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.sparse as sp
-from scipy.sparse.csgraph import breadth_first_order
+from scipy.sparse.csgraph import breadth_first_order, connected_components, dijkstra
 
 from mrodrake.logic.nba import NBA
 from mrodrake.planning.semantics import ExecutedWords
@@ -208,6 +208,20 @@ def useful_states(nba: NBA) -> frozenset[int]:
     return frozenset(q for q in range(nba.num_states) if fwd[q] < float("inf") and back[q] < float("inf"))
 
 
+def restrict_nba(nba: NBA, keep) -> NBA:
+    """The NBA with every edge into or out of a state outside ``keep`` removed (numbering kept)."""
+    keep = set(keep)
+    edges = [[(g, d) for g, d in row if q in keep and d in keep] for q, row in enumerate(nba.edges)]
+    return NBA(nba.ap, nba.initial, nba.accepting, edges)
+
+
+def planning_nba(nba: NBA, ts: TransitionSystem) -> NBA:
+    """The NBA the planners search: pruned on executed words and restricted to its useful states (the same
+    executed words are accepted; state numbering kept)."""
+    pruned = prune_nba(nba, ts, transit=True)
+    return restrict_nba(pruned, useful_states(pruned))
+
+
 # ------------------------------------------------------------------------------------------- on the fly
 class Product:
     """TS ⊗ NBA on the executed-word semantics (:mod:`mrodrake.planning.semantics`), implicit successors.
@@ -249,9 +263,10 @@ class Product:
     def cost(self, a: Node, b: Node) -> float:
         return self.ts.cost(a[0], b[0])
 
-    def build(self, ets: ExplicitTS | None = None) -> ExplicitProduct:
-        """The part of the product reachable from the initial state, as a CSR graph."""
-        return ExplicitProduct.build(self, ets)
+    def build(self, ets: ExplicitTS | None = None, some: bool = False) -> ExplicitProduct:
+        """The product over the reachable TS as a CSR graph (``some``: the over-approximation,
+        :class:`ExplicitProduct`)."""
+        return ExplicitProduct.build(self, ets, some)
 
 
 # ------------------------------------------------------------------------------------------- explicit
@@ -259,11 +274,17 @@ class Product:
 class ExplicitProduct:
     """The product over all TS states of ``ets`` as a CSR graph: node ``v = u·Q + q`` is (TS state row
     ``u`` of ``ets``, NBA state ``q``); ``initial`` is the initial product node (``ets`` row 0 is the TS's
-    initial state).  Nodes unreachable from ``initial`` are kept (they have no effect on searches from it)."""
+    initial state).  Nodes unreachable from ``initial`` are kept (they have no effect on searches from it).
+
+    ``some=False``: the planning product (an edge reaches q' for every crossing interleaving of some
+    order).  ``some=True``: the over-approximation (some order and some interleaving reach q',
+    :meth:`~mrodrake.planning.semantics.ExecutedWords.some_matrix_for`); ``accepting_edges`` then marks the
+    edges whose NBA run passes an accepting state inside the step."""
 
     product: Product
     ets: ExplicitTS
     graph: sp.csr_matrix
+    accepting_edges: sp.csr_matrix | None = None
 
     @property
     def Q(self) -> int:
@@ -297,8 +318,25 @@ class ExplicitProduct:
         mask[order] = True
         return mask
 
+    def has_accepting_cycle(self) -> bool:
+        """Does a node reachable from the initial node lie on a cycle through an accepting node or an
+        accepting edge?"""
+        reach = self.reachable()
+        _, comp = connected_components(self.graph, directed=True, connection="strong")
+        sizes = np.bincount(comp)
+        acc = self.accepting_mask() & reach
+        cand = np.flatnonzero(acc)
+        ind, ptr = self.graph.indices, self.graph.indptr
+        if np.any(sizes[comp[cand]] > 1) or any(v in ind[ptr[v]:ptr[v + 1]] for v in cand):
+            return True
+        if self.accepting_edges is not None and self.accepting_edges.nnz:
+            E = self.accepting_edges.tocoo()
+            on = reach[E.row] & (comp[E.row] == comp[E.col])
+            return bool(on.any())
+        return False
+
     @staticmethod
-    def build(product: Product, ets: ExplicitTS | None = None) -> ExplicitProduct:
+    def build(product: Product, ets: ExplicitTS | None = None, some: bool = False) -> ExplicitProduct:
         """Vectorised construction.  Every TS edge u → v gets a *move*: edges whose step crosses no rim
         AP_φ mentions share the move of their source label (δ(q, L(u))); the others get the move of their
         executed-word key, computed once per distinct (source label, crossings) among them.  Row (u, q) then
@@ -313,12 +351,14 @@ class ExplicitProduct:
         pos = ets.states[:, :n_ent]
         uniq, label_of = np.unique(pos, axis=0, return_inverse=True)
         label_of = label_of.ravel()
-        matrices = []
+        matrices, flags = [], []
+        none = np.zeros((Q, Q), dtype=bool)
         for lid in range(len(uniq)):
             mask = 0
             for e, k in enumerate(uniq[lid]):
                 mask |= 1 << (e * ts.K + int(k))
             matrices.append(words.matrix_for(mask & words.relevant, ()))
+            flags.append(none)
         move = label_of[src].astype(np.int64)
         A, B = ets.states[src], ets.states[dst]
         vis = words.visible(A, B)
@@ -332,10 +372,18 @@ class ExplicitProduct:
             first[inv[::-1]] = idx[::-1]
             base = len(matrices)
             for e in first:
-                matrices.append(product.words.matrix(ets.state(int(src[e])), ets.state(int(dst[e]))))
+                s_, t_ = ets.state(int(src[e])), ets.state(int(dst[e]))
+                if some:
+                    R, F = words.some_matrix(s_, t_)
+                    matrices.append(R)
+                    flags.append(F)
+                else:
+                    matrices.append(words.matrix(s_, t_))
+                    flags.append(none)
             move[idx] = base + inv
         Mv = np.stack(matrices) if matrices else np.zeros((0, Q, Q), dtype=bool)
-        rows_all, cols_all, data_all = [], [], []
+        Fv = np.stack(flags) if some and flags else None
+        rows_all, cols_all, data_all, acc_rows, acc_cols = [], [], [], [], []
         chunk = max(1024, (1 << 24) // max(1, Q * Q))  # bounds the (edges, Q, Q) temporary to ~16 MB
         for lo in range(0, len(src), chunk):
             hi = min(len(src), lo + chunk)
@@ -345,10 +393,82 @@ class ExplicitProduct:
             rows_all.append(src[e_ix] * Q + q)
             cols_all.append(dst[e_ix] * Q + q2)
             data_all.append(ets.costs[e_ix])
+            if Fv is not None and vis[lo:hi].any():
+                f_ix, fq, fq2 = np.nonzero(Fv[move[lo:hi]])
+                f_ix = f_ix + lo
+                acc_rows.append(src[f_ix] * Q + fq)
+                acc_cols.append(dst[f_ix] * Q + fq2)
         rows = np.concatenate(rows_all) if rows_all else np.zeros(0, dtype=np.int64)
         cols = np.concatenate(cols_all) if cols_all else np.zeros(0, dtype=np.int64)
         data = np.concatenate(data_all) if data_all else np.zeros(0)
         if len(rows) >= 2**31 - 1:
             raise MemoryError(f"explicit product too large ({len(rows)} transitions)")
         graph = sp.csr_matrix((data, (rows, cols)), shape=(S * Q, S * Q))
-        return ExplicitProduct(product, ets, graph)
+        acc_edges = None
+        if some:
+            ar = np.concatenate(acc_rows) if acc_rows else np.zeros(0, dtype=np.int64)
+            ac = np.concatenate(acc_cols) if acc_cols else np.zeros(0, dtype=np.int64)
+            acc_edges = sp.csr_matrix((np.ones(len(ar), dtype=np.int8), (ar, ac)), shape=(S * Q, S * Q))
+        return ExplicitProduct(product, ets, graph, acc_edges)
+
+
+# ------------------------------------------------------------------------------------------- lassos
+def _path(pred: np.ndarray, src: int, dst: int) -> list[int]:
+    out = [dst]
+    while out[-1] != src:
+        p = int(pred[out[-1]])
+        if p < 0:
+            raise RuntimeError("broken predecessor chain")
+        out.append(p)
+    return out[::-1]
+
+
+def optimal_lasso(g: sp.csr_matrix, initial: int, accepting: np.ndarray, stats: dict) -> tuple[list, list] | None:
+    """Node ids of the cheapest lasso of the weighted graph ``g`` from ``initial`` through an ``accepting``
+    node (prefix before it, non-empty cycle from it), or None when no accepting node reachable from
+    ``initial`` lies on a cycle (steps 2-4 of the module docstring; sizes go into ``stats``)."""
+    d0, pred0 = dijkstra(g, directed=True, indices=initial, return_predecessors=True)
+    reach = np.isfinite(d0)
+    stats["product_reachable_nodes"] = int(reach.sum())
+    acc = np.flatnonzero(accepting & reach)
+    ncomp, comp = connected_components(g, directed=True, connection="strong")
+    sizes = np.bincount(comp, minlength=ncomp)
+    ind, ptr, w = g.indices, g.indptr, g.data
+    self_loop = np.array([a in ind[ptr[a]:ptr[a + 1]] for a in acc], dtype=bool)
+    acc = acc[(sizes[comp[acc]] > 1) | self_loop]
+    if len(acc) == 0:
+        return None
+    gt = g.T.tocsr()
+    dA = dijkstra(gt, directed=True, indices=acc, min_only=True)
+    # LB(a) = min over edges a -> y of chi(a, y) + d(y, A)
+    lb = np.full(len(acc), np.inf)
+    for k, a in enumerate(acc):
+        lo, hi = ptr[a], ptr[a + 1]
+        if hi > lo:
+            lb[k] = float(np.min(w[lo:hi] + dA[ind[lo:hi]]))
+    order = np.lexsort((acc, d0[acc] + lb))
+    best, best_a, best_cycle = np.inf, -1, None
+    cycles = 0
+    tin_ptr, tin_ind, tin_w = gt.indptr, gt.indices, gt.data
+    for k in order:
+        a = int(acc[k])
+        if d0[a] + lb[k] >= best:
+            break
+        limit = best - d0[a]
+        dist, pred = dijkstra(g, directed=True, indices=a, return_predecessors=True, limit=limit)
+        cycles += 1
+        lo, hi = tin_ptr[a], tin_ptr[a + 1]
+        preds = tin_ind[lo:hi]
+        tot = dist[preds] + tin_w[lo:hi]
+        if len(tot) == 0:
+            continue
+        i = int(np.argmin(tot))
+        c = float(tot[i])
+        if d0[a] + c < best:
+            p = int(preds[i])
+            best, best_a = float(d0[a] + c), a
+            best_cycle = _path(pred, a, p) if p != a else [a]
+    stats.update(accepting_candidates=int(len(acc)), cycle_searches=cycles)
+    if best_a < 0:
+        return None
+    return _path(pred0, initial, best_a)[:-1], best_cycle

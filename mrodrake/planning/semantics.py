@@ -39,6 +39,7 @@ import numpy as np
 from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import breadth_first_order, connected_components
 
+from mrodrake.geometry import grasp_layout
 from mrodrake.logic.ltl import Formula, Not, atoms
 from mrodrake.logic.nba import NBA
 from mrodrake.logic.translate import translate
@@ -66,36 +67,80 @@ def region_changing(actions: Sequence[Action]) -> list[Action]:
 @dataclass(frozen=True)
 class Crossing:
     """One body of a region-changing action: the AP_φ bit its leaving clears and the bit its entering sets
-    (−1 where AP_φ does not mention the source / destination proposition)."""
+    (−1 where AP_φ does not mention the source / destination proposition), and the bodies of the same
+    action that must have left the source before this one can enter the destination (:func:`entry_order`)."""
 
     body: int
     leave: int
     enter: int
+    after: tuple[int, ...] = ()
+
+
+#: Slack (m) on how far a grasping robot's centre may sit from its layout slot (docking tolerance, rounding).
+TEAM_SLACK = 0.1
+
+
+def entry_order(ts: TransitionSystem, a: Action) -> dict[int, tuple[int, ...]]:
+    """body f -> the bodies e of the same transport that leave ``a.src`` before f enters ``a.dst``.
+
+    The geometry that decides interleavings: a body's ball lies in region k iff its centre is within
+    R_k − r of c_k (:func:`~mrodrake.execution.monitor.entity_regions`), and a team is rigid while it
+    travels, each member's centre within ρ = d + :data:`TEAM_SLACK` of the object's (d: the grasp layout's
+    slot distance, :func:`~mrodrake.geometry.grasp_layout`; ρ = 0 for the object).  Body e still in the
+    source and body f already in the destination put the two region centres at most
+    (R_src − r_e + ρ_e) + (R_dst − r_f + ρ_f) apart; farther apart, f enters only after e has left.  Every
+    crossing order this removes is one that no execution produces, so the words kept still contain every
+    executed word.  A navigation moves one body (leaving before entering): nothing to order."""
+    if not isinstance(a, Transport):
+        return {}
+    layout = grasp_layout(ts.object_radius[a.obj], [ts.robot_radius[i] for i in a.team], ts.grasp_gap)
+    reach = {ts.N + a.obj: (ts.object_radius[a.obj], 0.0)}
+    for i in a.team:
+        reach[i] = (ts.robot_radius[i], layout.distance + TEAM_SLACK)
+    gap = float(ts.dist[a.src, a.dst])
+    R0, R1 = ts.region_radius[a.src], ts.region_radius[a.dst]
+    out = {}
+    for f, (rf, pf) in reach.items():
+        before = tuple(e for e, (re, pe) in reach.items()
+                       if e != f and gap > (R0 - re + pe) + (R1 - rf + pf))
+        if before:
+            out[f] = before
+    return out
 
 
 def crossings(ts: TransitionSystem, relevant: int, a: Action) -> tuple[Crossing, ...]:
-    """The crossings of action ``a`` that AP_φ can see."""
+    """The crossings of action ``a`` that AP_φ can see, with the entry order the geometry imposes."""
     K = ts.K
     out = []
+    order = entry_order(ts, a)
     for b in bodies(ts, a):
         lb, eb = b * K + a.src, b * K + a.dst
         c = Crossing(b, lb if relevant >> lb & 1 else -1, eb if relevant >> eb & 1 else -1)
         if c.leave >= 0 or c.enter >= 0:
             out.append(c)
-    return tuple(out)
+    visible_leave = {c.body for c in out if c.leave >= 0}
+    return tuple(Crossing(c.body, c.leave, c.enter,
+                          tuple(e for e in order.get(c.body, ()) if e in visible_leave) if c.enter >= 0 else ())
+                 for c in out)
 
 
 def _events(cross: Sequence[Crossing]) -> tuple[list[tuple[int, int]], list[int]]:
-    """Crossing events (bit, +1 set / −1 clear) and, per event, the mask of events that must precede it."""
+    """Crossing events (bit, +1 set / −1 clear) and, per event, the mask of events that must precede it
+    (a body leaves before it enters; an entry waits for the leaves of its ``after`` bodies)."""
     events, pre, leave_of = [], [], {}
     for c in cross:
         if c.leave >= 0:
             leave_of[c.body] = len(events)
             events.append((c.leave, -1))
             pre.append(0)
+    for c in cross:
         if c.enter >= 0:
             events.append((c.enter, +1))
-            pre.append(1 << leave_of[c.body] if c.body in leave_of else 0)
+            need = 0
+            for e in (c.body, *c.after):
+                if e in leave_of:
+                    need |= 1 << leave_of[e]
+            pre.append(need)
     return events, pre
 
 
@@ -204,6 +249,8 @@ class ExecutedWords:
         self._step: dict[tuple, list[dict[int, tuple[int, ...]]]] = {}
         self._matrix: dict[tuple, np.ndarray] = {}
         self._label_matrix: dict[int, np.ndarray] = {}
+        self._some: dict[tuple, tuple[np.ndarray, np.ndarray]] = {}
+        self._acc = sum(1 << f for f in nba.accepting)
 
     # ------------------------------------------------------------------------------------ NBA on subsets
     def delta(self, S: int, letter: int) -> int:
@@ -341,6 +388,84 @@ class ExecutedWords:
                 M[q, list(self._successors_key(q, mask, sig))] = True
             self._matrix[key] = M
         return M
+
+    # ------------------------------------------------------------------------------------ some word
+    def _some_action(self, S0: int, S1: int, mask: int, cross: tuple) -> tuple[int, int]:
+        """NBA states after one action's crossings over *some* interleaving, from the states S0 (no
+        accepting state passed yet) and S1 (one passed): the union over the crossing lattice."""
+        events, pre = _events(cross)
+        n = len(events)
+        acc = self._acc
+        fam = {0: (S0, S1)}
+        masks = {0: mask}
+        for D in range(1 << n):
+            cur = fam.get(D)
+            if cur is None:
+                continue
+            letter = masks[D]
+            T0 = self.delta(cur[0], letter)
+            nxt = (T0 & ~acc, (T0 & acc) | self.delta(cur[1], letter))
+            for i in range(n):
+                if not D >> i & 1 and D & pre[i] == pre[i]:
+                    D2 = D | 1 << i
+                    old = fam.get(D2, (0, 0))
+                    fam[D2] = (old[0] | nxt[0], old[1] | nxt[1])
+                    masks[D2] = _apply(letter, events[i])
+        return fam[(1 << n) - 1]
+
+    def some_matrix_for(self, mask: int, sig: tuple) -> tuple[np.ndarray, np.ndarray]:
+        """The over-approximation of a step: ``R[q, q']`` iff *some* order of the visible actions and some
+        crossing interleaving takes the NBA from q to q'; ``A[q, q']`` iff one of those runs passes an
+        accepting state inside the step (after any of its letters).  Every executed word
+        of a TS run has an NBA run through these edges, so a product over them without an accepting cycle
+        (an accepting node or an ``A`` edge on a cycle) proves that no execution satisfies the task."""
+        key = (mask, sig)
+        hit = self._some.get(key)
+        if hit is not None:
+            return hit
+        Q = self.Q
+        R = np.zeros((Q, Q), dtype=bool)
+        A = np.zeros((Q, Q), dtype=bool)
+        if not sig:
+            for q in range(Q):
+                R[q, self.nba.successors(q, mask)] = True
+            self._some[key] = (R, A)
+            return R, A
+        n = len(sig)
+        after = [mask] * (1 << n)  # the label once the actions of a subset are done (order-independent)
+        for done in range(1, 1 << n):
+            i = (done & -done).bit_length() - 1
+            m = after[done & ~(1 << i)]
+            for c in sig[i]:
+                if c.leave >= 0:
+                    m &= ~(1 << c.leave)
+                if c.enter >= 0:
+                    m |= 1 << c.enter
+            after[done] = m
+        for q in range(Q):
+            G = {0: (1 << q, 0)}
+            for done in range(1 << n):
+                cur = G.get(done)
+                if cur is None or cur == (0, 0):
+                    continue
+                for i in range(n):
+                    if not done >> i & 1:
+                        got = self._some_action(cur[0], cur[1], after[done], sig[i])
+                        old = G.get(done | 1 << i, (0, 0))
+                        G[done | 1 << i] = (old[0] | got[0], old[1] | got[1])
+            S0, S1 = G.get((1 << n) - 1, (0, 0))
+            for d in range(Q):
+                if (S0 | S1) >> d & 1:
+                    R[q, d] = True
+                if S1 >> d & 1:
+                    A[q, d] = True
+        self._some[key] = (R, A)
+        return R, A
+
+    def some_matrix(self, s: State, t: State) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`some_matrix_for` of the step s → t."""
+        mask, sig, _ = self.key(s, t)
+        return self.some_matrix_for(mask, sig)
 
     def visible(self, X: np.ndarray, Y) -> np.ndarray:
         """``vis[r]``: does the step X[r] → Y[r] (or the reverse) move a body across a rim AP_φ mentions?

@@ -38,7 +38,7 @@ picked by (closable by the idle step first, then lowest prefix cost) among candi
 is below the best plan.  A suffix tree is set aside after ``suffix_budget`` (1000) iterations; when
 all are set aside without a plan, every budget doubles (so no candidate is abandoned for good).
 ``iterations`` counts all tree iterations; ``time_limit`` stops earlier; without a plan after
-``iterations`` the search continues until the first plan (at most ``time_limit``, or ``extend_seconds``).
+``iterations`` the search continues until the first plan (at most ``extend_iterations`` more).
 The TS-specific parts (pruning, word semantics, vectorised transition test and costs, goals, estimated steps,
 successor sampler) are a *strategy*: :class:`ObjectStrategy` here, :class:`~mrodrake.planning.graph_stylus.
 GraphStrategy` for multi-robot graph systems.  All randomness comes from one seeded numpy Generator: the same seed
@@ -363,7 +363,7 @@ class _Tree:
         s_a, q_a = self.close_to
         tid = self.n_tid[v]
         s = self.states[tid]
-        if self.p.ts.check_transition(s, s_a) is not None:
+        if self.p.ts.check_transition(s, s_a) is not None or s_a in self.p.banned.get(s, ()):
             return False
         return bool(self.p.words.rows(s, s_a, [self.n_q[v]])[0, q_a])
 
@@ -391,12 +391,16 @@ class _Tree:
         row = np.asarray(s, dtype=self.X.dtype)[None, :]
         X = self.X[:n]
         pred = np.flatnonzero(p.trans.mask(X, s))
+        if p.banned and s in p.banned:
+            pred = pred[[self.states[u] not in p.banned[s] for u in pred]].astype(np.int64)
         if tid is None:
             tid = self._add_state(s)
         if len(pred) == 0:
             return
         chi = p.trans.cost(X[pred], row)
         pi, pq = np.nonzero(self.node_of[pred] >= 0)  # candidate parent nodes (tree state, NBA state)
+        if len(pi) == 0:  # only states without nodes (reached through banned steps) lead here
+            return
         parents = self.node_of[pred[pi], pq]
         base = self.C[parents] + chi[pi]
         T = p.labels.T[self.lid[pred[pi]], pq]  # (candidates, Q): NBA moves of each candidate
@@ -438,6 +442,8 @@ class _Tree:
                 queue.append(y)
         if not p.strategy.symmetric:
             pred = np.flatnonzero(p.trans.mask_from(s, X))
+            if p.banned and s in p.banned:
+                pred = pred[[self.states[u] not in p.banned[s] for u in pred]].astype(np.int64)
             chi = p.trans.cost(row, X[pred])
         for v in dict.fromkeys(changed):  # symmetric relation and χ: successors of s are its predecessors
             self._rewire_from(v, pred, chi)
@@ -587,8 +593,13 @@ class Stylus:
 
     def __init__(self, ts: TransitionSystem, nba: NBA, relevant: int, seed: int | None = None,
                  p_rand: float | None = None, p_new: float | None = None, max_active_suffix: int = 4,
-                 suffix_budget: int = 1000, replan: bool = True):
+                 suffix_budget: int = 1000, replan: bool = True, banned=None):
         self.ts = ts
+        #: TS transitions the planner must not use (state -> states; both directions of each pair).
+        self.banned: dict[State, set[State]] = {}
+        for a, b in banned or ():
+            self.banned.setdefault(tuple(a), set()).add(tuple(b))
+            self.banned.setdefault(tuple(b), set()).add(tuple(a))
         self.strategy = strategy_for(ts, relevant)
         self.nba = self.strategy.prune(nba)
         self.words = self.strategy.words(self.nba)
@@ -643,6 +654,11 @@ class Stylus:
             self._closing[key] = out
         return out
 
+    def _uses_banned(self, prefix: list, suffix: list) -> bool:
+        run = [s for s, _ in prefix] + [s for s, _ in suffix]
+        nxt = run[1:] + [suffix[0][0]]
+        return any(b in self.banned.get(a, ()) for a, b in zip(run, nxt))
+
     def _on_new_node(self, tree: _Tree, v: int) -> None:
         if tree is self.prefix_tree and tree.n_q[v] in self.acc:
             self._new_accepting.append(v)
@@ -661,12 +677,13 @@ class Stylus:
         return bool(T[reach, q_a].any())
 
     def run(self, iterations: int, time_limit: float | None = None, stop_at_first: bool = False,
-            progress: Callable[[dict], None] | None = None, extend_seconds: float = 60.0) -> StylusResult:
+            progress: Callable[[dict], None] | None = None, extend_iterations: int = 0) -> StylusResult:
         """Grow the trees for ``iterations`` iterations or ``time_limit`` seconds, whichever ends first.
 
-        If no plan exists after ``iterations``, keep going until the first plan, for at most
-        ``time_limit`` (or ``extend_seconds`` without a time limit); then UserError.  ``progress`` gets a
-        dict (iteration, seconds, tree sizes, best cost) about ten times a second.
+        If no plan exists after ``iterations``, keep going until the first plan for at most
+        ``extend_iterations`` more (and never past ``time_limit``); then NoPlanFound.  Without a time limit the
+        result is a function of the seed and the budget only.  ``progress`` gets a dict (iteration, seconds,
+        tree sizes, best cost) about ten times a second.
         """
         t0 = time.perf_counter()
         ts, rng = self.ts, self.rng
@@ -714,7 +731,7 @@ class Stylus:
             now = time.perf_counter() - t0
             if time_limit is not None and now > time_limit:
                 break
-            if it >= iterations and (best[1] >= 0 or time_limit is None and now > extend_seconds):
+            if it >= iterations and (best[1] >= 0 or it >= iterations + extend_iterations):
                 break
             it += 1
             if self._new_accepting:
@@ -766,6 +783,8 @@ class Stylus:
                     replans += 1
                     replan_seconds += time.perf_counter() - t1
                     top = min(best[0], replanned[0]) if replanned else best[0]
+                    if found is not None and self.banned and self._uses_banned(found[0], found[1]):
+                        found = None
                     if found is not None and found[2] + found[3] < top - 1e-9:
                         replanned = (found[2] + found[3], *found)
                         history.append((time.perf_counter() - t0, it, replanned[0]))
@@ -780,7 +799,10 @@ class Stylus:
                  "suffix_nodes": sum(t.num_nodes for t in suffix.values()),
                  "sampler": dict(self.sampler.stats), "replans": replans, "replan_seconds": replan_seconds}
         if best[1] < 0:
-            raise NoPlanFound(f"no plan found within {it} iterations and {elapsed:.1f} s; satisfiability unknown "
+            ran_out = (f"the time limit of {time_limit:g} s"
+                       if time_limit is not None and it < iterations + extend_iterations
+                       else f"the budget of {it} iterations")
+            raise NoPlanFound(f"no plan found within {ran_out} ({elapsed:.1f} s); satisfiability unknown "
                               "(STyLuS* is probabilistically complete: raise --iterations or --time-limit)"
                               + self.strategy.no_plan_note())
         if replanned and replanned[0] < best[0]:

@@ -1,6 +1,6 @@
 """Mission execution in ONE Drake diagram (paper Sec. III-A, sequential execution of the plan).
 
-:class:`Mission` places the whole executed run (:mod:`mrodrake.execution.placement`), builds the diagram with
+:class:`Mission` places the whole executed run (:mod:`mrodrake.planning.placement`), builds the diagram with
 the ``AddX`` helpers of :mod:`mrodrake.systems.builders` (plants, controllers, team plants, state switches,
 the supervisor that carries the sequencer of :mod:`mrodrake.execution.sequencer`) and a :class:`MissionLogger`,
 and advances the whole mission with one ``AdvanceTo``; the supervisor ends it.  Engaging a team syncs the
@@ -25,10 +25,10 @@ from threadpoolctl import threadpool_limits
 
 from mrodrake.control.adaptive import AdaptiveGains
 from mrodrake.errors import UserError
-from mrodrake.execution.placement import place_run
 from mrodrake.execution.sequencer import ExecState, Sequencer, Status, couplings_of
-from mrodrake.execution.steps import expand_steps
+from mrodrake.planning.placement import place_run
 from mrodrake.planning.plan import Plan, PlanVerificationError, task_nba, task_words
+from mrodrake.planning.steps import expand_steps
 from mrodrake.scenario import Scenario
 from mrodrake.systems.builders import (
     AddEntityPlants,
@@ -145,8 +145,8 @@ class MissionLog:
 class Mission:
     """One Drake diagram executing ``plan`` (prefix + ``suffix_cycles`` suffix cycles) on ``scenario``.
 
-    Before anything is built, the whole executed run is placed (:func:`~mrodrake.execution.placement.place_run`;
-    a geometry that cannot be realised raises a one-line :class:`~mrodrake.execution.placement.PlacementError`
+    Before anything is built, the whole executed run is placed (:func:`~mrodrake.planning.placement.place_run`;
+    a geometry that cannot be realised raises a one-line :class:`~mrodrake.planning.placement.PlacementError`
     naming the step and region).  The diagram (:mod:`mrodrake.systems.builders`): a plant per robot and object,
     a navigation controller per robot, a team plant and transport controller per (object, team) of the plan's
     transports, a state switch per entity, the :class:`~mrodrake.systems.supervisor.Supervisor` (the
@@ -169,8 +169,12 @@ class Mission:
         self.ts = plan.ts if plan.ts is not None else TransitionSystem(scenario)
         self.formula, self.nba, self.words = task_words(scenario, self.ts)
         t0 = time.perf_counter()
-        with threadpool_limits(limits=1, user_api="blas"):  # as in run(): the same layout on every core count
-            self.placement = place_run(self.ts, expand_steps(plan, suffix_cycles), seed=self.seed)
+        placed = plan.stats.get("placement", {}) if plan.placement is not None else {}
+        if placed.get("seed") == self.seed and placed.get("suffix_cycles") == suffix_cycles:
+            self.placement = plan.placement  # the planner placed this very run (place_run is deterministic)
+        else:
+            with threadpool_limits(limits=1, user_api="blas"):  # as in run(): the same layout on every core count
+                self.placement = place_run(self.ts, expand_steps(plan, suffix_cycles), seed=self.seed)
         self.placement_seconds = time.perf_counter() - t0
         kw = {} if rest_speed is None else {"rest_speed": rest_speed}
         self.sequencer = Sequencer(scenario, self.ts, self.words, self.placement, couplings_of(plan), **kw)

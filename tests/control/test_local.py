@@ -14,12 +14,12 @@ from mrodrake.control.adaptive import AdaptiveGains
 from mrodrake.control.local import (
     PATH_CLEARANCE,
     DiskWorldNavigationFunction,
-    _segment_distances,
     clear_goal,
     exit_path,
     leg_barriers,
     local_path,
     local_task,
+    segment_distances,
 )
 from mrodrake.systems.plants import friction
 
@@ -60,7 +60,7 @@ def test_straight_path_when_visible_and_detour_when_blocked():
     assert len(path) >= 2
     np.testing.assert_allclose(path[-1], goal)
     pts = np.vstack([start, path])
-    clear = _segment_distances(pts[:-1], pts[1:], centers)[:, 0] - radii[0]
+    clear = segment_distances(pts[:-1], pts[1:], centers)[:, 0] - radii[0]
     assert clear.min() >= 0.05 - 1e-12  # half the path clearance
     assert np.all(np.linalg.norm(path - C0, axis=1) <= R0)
     # no longer than going round the grown disk by a polygon of 16 corners (π R + straight bits)
@@ -98,7 +98,7 @@ def test_planned_legs_are_clear_and_outside_every_barrier(disks, seed):
     except ValueError:
         return
     pts = np.vstack([start, path])
-    clear = _segment_distances(pts[:-1], pts[1:], centers) - radii[None, :]
+    clear = segment_distances(pts[:-1], pts[1:], centers) - radii[None, :]
     assert clear.min() >= 0.05 - 1e-9
     assert np.all(np.linalg.norm(pts - C0, axis=1) <= R0 + 1e-12)
     for a, b in zip(pts[:-1], pts[1:]):
@@ -314,7 +314,7 @@ def test_docking_through_a_gap_only_the_tight_ring_passes():
     slot = centers[4] + 1.05 * np.array([math.cos(2 * math.pi / 3), math.sin(2 * math.pi / 3)])
     path = local_path(start, slot, centers, radii, rim_c, rim_r)
     pts = np.vstack([start, path])
-    clear = _segment_distances(pts[:-1], pts[1:], centers) - radii[None, :]
+    clear = segment_distances(pts[:-1], pts[1:], centers) - radii[None, :]
     assert clear.min() >= 0.5 * PATH_CLEARANCE - 1e-9
     assert np.all(np.linalg.norm(pts - rim_c, axis=1) <= rim_r + 1e-9)
     np.testing.assert_allclose(path[-1], slot)
@@ -336,7 +336,7 @@ def test_exit_path_leaves_a_pocket_between_packed_entities():
     assert np.min(np.linalg.norm(centers - end, axis=1) - radii) >= 0.5
     assert np.linalg.norm(end - rim_c) <= rim_r
     pts = np.vstack([start, legs])
-    clear = _segment_distances(pts[:-1], pts[1:], centers) - radii[None, :]
+    clear = segment_distances(pts[:-1], pts[1:], centers) - radii[None, :]
     assert clear.min() >= 0.5 * PATH_CLEARANCE - 1e-9
     length = np.sum(np.linalg.norm(np.diff(pts, axis=0), axis=1))
     assert end[0] < start[0] and length <= 0.8 + 1e-9  # the 0.1 m rings: 0.8 m due west is the first clear point

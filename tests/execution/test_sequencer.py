@@ -10,10 +10,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from mrodrake.execution.placement import OpKind, place_run
 from mrodrake.execution.sequencer import EXIT_CLEARANCE, Phase, Sequencer, Status, couplings_of
-from mrodrake.execution.steps import expand_steps
+from mrodrake.planning.placement import OpKind, place_run
 from mrodrake.planning.plan import plan_scenario, task_words
+from mrodrake.planning.steps import expand_steps
 from mrodrake.scenario import load_scenario
 
 ROOT = Path(__file__).resolve().parents[2]

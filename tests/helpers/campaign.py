@@ -28,5 +28,6 @@ def campaign_mission(tmp_path, generate: str, mission_id: str):
     assert task.mission_id == mission_id
     sc = randomized_scenario(task.instance.scenario, task.params)
     with threadpool_limits(limits=1, user_api="blas"):
-        plan = plan_scenario(sc, seed=task.plan_seed, time_limit=60)
+        plan = plan_scenario(sc, seed=task.plan_seed, suffix_cycles=task.suffix_cycles,
+                             layout_seed=task.layout_seed)
     return task, sc, plan

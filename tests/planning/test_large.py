@@ -79,8 +79,8 @@ def test_large_systems_focus_and_find_a_first_plan():
     f, nba = task_nba(sc, ts)
     planner = Stylus(ts, nba, relevant_mask(ts, f), seed=1)
     assert planner.focus > 0
-    res = planner.run(1, time_limit=60.0, stop_at_first=True)
-    assert res.stats["first_plan_seconds"] < 60.0
+    res = planner.run(1, stop_at_first=True, extend_iterations=2000)
+    assert res.stats["first_plan_seconds"] is not None and res.stats["iterations"] <= 2001
 
 
 def test_the_vectorised_transition_test_blocks_untravelled_moves_without_objects():

@@ -9,9 +9,9 @@ import pytest
 import shapely
 
 from mrodrake.execution.monitor import WordMonitor, entity_regions
-from mrodrake.execution.steps import expand_steps
 from mrodrake.geometry import polygon
 from mrodrake.planning.plan import task_words
+from mrodrake.planning.steps import expand_steps
 
 ROOT = Path(__file__).resolve().parents[2]
 

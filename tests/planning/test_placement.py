@@ -13,9 +13,9 @@ import yaml
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from mrodrake.execution.placement import OpKind, PlacementError, layout_slots, place_run
-from mrodrake.execution.steps import StepSpec, expand_steps
+from mrodrake.planning.placement import OpKind, PlacementError, layout_slots, place_run
 from mrodrake.planning.plan import plan_scenario
+from mrodrake.planning.steps import StepSpec, expand_steps
 from mrodrake.scenario import load_scenario, scenario_from_dict
 from mrodrake.ts import Grasp, Release, TransitionSystem, Transport
 

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from mrodrake.planning.universal import Family
 from mrodrake.ts import Action
 
 
@@ -16,9 +17,9 @@ class StepSpec:
     plan_step: int
     cycle: int
     src: tuple
-    src_q: int
+    src_q: int | Family
     dst: tuple
-    dst_q: int
+    dst_q: int | Family
     actions: tuple[Action, ...]
 
 

@@ -29,7 +29,7 @@ a door can cut it off for a team).  Spots keep
 ``radius + CONTROL_MARGIN`` to walls, obstacles and other regions (sampled boundary points are fixed disks), so
 that the point-world free space of a departure or an arrival contains them.  Every local motion
 (back-off, docking, room move) is checked for a straight-leg path inside its region
-(:func:`mrodrake.control.local.local_path`).  A geometry that cannot be realised raises
+(:func:`mrodrake.geometry.local_path`).  A geometry that cannot be realised raises
 :class:`PlacementError` naming the step and the region, before any simulation.
 """
 
@@ -46,11 +46,10 @@ import shapely
 from shapely.geometry import Point
 from shapely.ops import unary_union
 
-from mrodrake.control.local import local_path
 from mrodrake.errors import UserError
-from mrodrake.execution.steps import StepSpec
-from mrodrake.geometry import CONTROL_MARGIN, grasp_layout, polygon
+from mrodrake.geometry import CONTROL_MARGIN, grasp_layout, local_path, polygon
 from mrodrake.packing import can_place, place
+from mrodrake.planning.steps import StepSpec, expand_steps
 from mrodrake.ts import Grasp, Navigate, Release, TransitionSystem, Transport
 
 #: Spacing (m) of the boundary points that keep spots off walls, obstacles and other regions.
@@ -105,7 +104,12 @@ class Placement:
 
 
 class PlacementError(UserError):
-    """The executed run needs room a region does not have (one line naming the step and the region)."""
+    """The executed run needs room a region does not have (one line naming the step and the region);
+    ``step`` is the executed step that failed (None: the initial layout) and ``region`` its region."""
+
+    def __init__(self, message: str, step: StepSpec | None = None, region: int = -1):
+        super().__init__(message)
+        self.step, self.region = step, region
 
 
 class _Retry(Exception):
@@ -439,7 +443,7 @@ class _Placer:
                 ops.append(move)
         raise PlacementError(f"{self.where_msg(spec, k)}: no room to back off for "
                              f"{', '.join(self.ts.robot_names[i] for i in robots)} after releasing "
-                             f"{self.ts.object_names[j]}")
+                             f"{self.ts.object_names[j]}", spec, k)
 
     def _backoffs(self, w: _World, step: int, k: int, robots: list[int]) -> list | None:
         """Back-off spots of ``robots`` (None: no room); each keeps out of the covering disk of every team that
@@ -602,7 +606,7 @@ class _Placer:
                 later, other = (ex, e) if w.placed[ex] >= w.placed[e] else (e, ex)
                 self._hint(w, later, [(w.pos[other], need)])
         raise PlacementError(f"{self.where_msg(spec, k)}: no free grasp layout for "
-                             f"{'+'.join(ts.robot_names[i] for i in team)} around {ts.object_names[j]}")
+                             f"{'+'.join(ts.robot_names[i] for i in team)} around {ts.object_names[j]}", spec, k)
 
     def _clear_disk_by_team(self, w: _World, step: int, k: int, center, radius: float,
                             keep: set[int]) -> PlacedOp | None:
@@ -707,7 +711,7 @@ class _Placer:
                 entity_names = ts.robot_names + ts.object_names
                 nearby = ", ".join(entity_names[x] for x in self.units(w, k, step, movers)[2]) or "nothing"
                 raise PlacementError(f"{self.where_msg(spec, k)}: no room for "
-                                     f"{ts.format_action(a, 'names')} (radius {r:.2f} m) next to {nearby}")
+                                     f"{ts.format_action(a, 'names')} (radius {r:.2f} m) next to {nearby}", spec, k)
             spot, ops = found[0][0], found[1]
         rot = 0.0
         if isinstance(a, Transport):  # the members move rigidly with the object
@@ -1001,7 +1005,7 @@ class _Placer:
                     p = self.spot(k, radii[n], cs, rs, self.hints.get((ents[n], -1), []))
                     if p is None:
                         raise PlacementError(f"initial state: region '{self.ts.region_names[k]}': no layout "
-                                             "keeps the room later steps need")
+                                             "keeps the room later steps need", None, k)
                     pos[ents[n]] = p
                     cs.append(p)
                     rs.append(radii[n])
@@ -1020,7 +1024,7 @@ class _Placer:
             if sol is None:
                 raise PlacementError(f"initial state: region '{self.ts.region_names[k]}': the entities "
                                      f"{', '.join((self.ts.robot_names + self.ts.object_names)[e] for e in everyone)} "
-                                     "with the team disks of their objects do not fit")
+                                     "with the team disks of their objects do not fit", None, k)
             pos[ents] = sol
             for j in sorted(set(seated.values())):
                 self.seat(pos, k, j, seated)
@@ -1054,6 +1058,47 @@ class _Placer:
         return Placement(tuple(map(tuple, initial.tolist())), tuple(out))
 
 
+#: Slack (m) on a team's covering radius in the reachability check (docking tolerance, rounding).
+TEAM_RADIUS_SLACK = 0.05
+
+
+def unreachable_arrival(ts: TransitionSystem, placement: Placement) -> PlacementError | None:
+    """The first navigation or transport of the placed run whose goal the free space of the moving entity
+    does not connect with its start (the sequencer's test, paper Sec. III-A: walls, obstacles and the other
+    regions grown by radius + :data:`~mrodrake.geometry.CONTROL_MARGIN`, the other entities' bodies by the
+    radius), as a PlacementError naming the step; None when every arrival is reachable."""
+    N = ts.N
+    radii = np.array(list(ts.robot_radius) + list(ts.object_radius), dtype=float)
+    X = np.array(placement.initial, dtype=float)
+    for sp_ in placement.steps:
+        end = np.array(sp_.positions, dtype=float)
+        for op in sp_.ops:
+            if op.kind in (OpKind.NAVIGATE, OpKind.TRANSPORT):
+                a = op.action
+                if isinstance(a, Navigate):
+                    movers, R = {a.robot}, float(radii[a.robot])
+                else:
+                    movers, R = {N + a.obj, *a.team}, ts.covering_radius(a.obj, a.team) + TEAM_RADIUS_SLACK
+                space = ts.region_graph.travel_space(R, a.src, a.dst)
+                start, goal = X[op.entity], np.asarray(op.goal, dtype=float)
+                disks = [Point(*X[e]).buffer(radii[e] + R) for e in range(len(X)) if e not in movers]
+                rest = space.difference(unary_union(disks)) if space is not None and disks else space
+                parts = [] if rest is None else list(getattr(rest, "geoms", [rest]))
+                p0, p1 = Point(*start).buffer(1e-3), Point(*goal).buffer(1e-3)
+                if not any(q.intersects(p0) and q.intersects(p1) for q in parts):
+                    who = ts.format_action(a, "names")
+                    return PlacementError(
+                        f"step {sp_.step.index} (plan step {sp_.step.plan_step}): region "
+                        f"'{ts.region_names[a.dst]}': the goal ({goal[0]:.3f}, {goal[1]:.3f}) of {who} is "
+                        f"separated from its start by the entities in the way (radius {R:.2f} m)", sp_.step, a.dst)
+                for e in movers:
+                    X[e] = end[e]
+            else:
+                X[op.entity] = op.goal
+        X = end
+    return None
+
+
 #: Whole-run attempts of :func:`place_run` (greedy placement with different orders of candidate spots).
 ATTEMPTS = 4
 #: Re-placements of one attempt after a learned hint (an earlier arrival keeps off a spot a later step needs).
@@ -1077,10 +1122,19 @@ def place_run(ts: TransitionSystem, steps: Sequence[StepSpec], seed: int = 0,
         for _ in range(RETRIES):
             try:
                 pos = placer.initial(state) if initial is None else np.asarray(initial, dtype=float)
-                return placer.run(pos)
+                placed = placer.run(pos)
+                blocked = unreachable_arrival(ts, placed)
+                if blocked is not None:
+                    raise blocked
+                return placed
             except _Retry:
                 continue
             except PlacementError as exc:
                 first = first or exc
                 break
     raise first
+
+
+def place_plan(plan, suffix_cycles: int = 1, seed: int = 0) -> Placement:
+    """:func:`place_run` of the plan's executed run: the prefix and ``suffix_cycles`` suffix cycles."""
+    return place_run(plan.ts, expand_steps(plan, suffix_cycles), seed=seed)
