@@ -485,7 +485,8 @@ def _check_initial(s: Scenario, where: Where) -> None:
 
 
 def _check_task(s: Scenario, where: Where) -> None:
-    from mrodrake.logic.ltl import atoms, parse
+    from mrodrake.logic.formula import atoms
+    from mrodrake.logic.parse import parse
 
     macros = dict(s.task.propositions)
     entities = set(s.robot_names) | set(s.object_names)

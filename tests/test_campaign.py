@@ -137,7 +137,7 @@ def test_option_errors(tmp_path, capsys):
 def test_shipped_specs_load():
     smoke = load_campaign(ROOT / "scenarios" / "campaigns" / "smoke.yaml")
     assert 4 <= len(smoke.tasks) <= 8
-    big = load_campaign(ROOT / "scenarios" / "campaigns" / "issue12.yaml")
+    big = load_campaign(ROOT / "scenarios" / "campaigns" / "success_by_size.yaml")
     assert len(big.tasks) >= 200
     sizes = {(len(t.instance.scenario.robots), len(t.instance.scenario.objects), len(t.instance.scenario.regions))
              for t in big.tasks if t.instance.family != "tiny"}

@@ -11,9 +11,10 @@ from __future__ import annotations
 import sys
 import time
 
-from mrodrake.logic import ltl
 from mrodrake.logic.data import load_case_study_formulas, load_dwyer_patterns
+from mrodrake.logic.formula import atoms, to_str
 from mrodrake.logic.nba import NBA
+from mrodrake.logic.parse import parse
 from mrodrake.logic.spot_backend import import_spot, spot_available
 from mrodrake.logic.translate import translate
 
@@ -37,7 +38,7 @@ def run_ltl_benchmark(stream=sys.stdout) -> dict:
     patterns = load_dwyer_patterns()
     rows = []
     for i, text in enumerate(patterns, start=1):
-        f = ltl.parse(text, source=f"dwyer_patterns.txt:{i}")
+        f = parse(text, source=f"dwyer_patterns.txt:{i}")
         ours, t_ours = _timed(translate, f)
         row = {"index": i, "formula": text, "states": ours.num_states, "edges": ours.num_edges,
                "time_s": t_ours}
@@ -83,16 +84,16 @@ def run_ltl_benchmark(stream=sys.stdout) -> dict:
     w("\nCase-study formulas (paper: case I 6 states/18 transitions, case II 8/27)\n")
     cases = []
     for (name, p_states, p_edges), text in zip(PAPER_CASE_STUDIES, load_case_study_formulas()):
-        f = ltl.parse(text, source=name)
+        f = parse(text, source=name)
         ours, t = _timed(translate, f)
         case = {"name": name, "states": ours.num_states, "edges": ours.num_edges,
                 "accepting": len(ours.accepting), "time_s": t, "paper_states": p_states, "paper_edges": p_edges,
-                "propositions": len(ltl.atoms(f))}
+                "propositions": len(atoms(f))}
         line = (f"{name:8s} ours {ours.num_states} states / {ours.num_edges} edges / {len(ours.accepting)} accepting, "
                 f"{1000 * t:.1f} ms (target <= {1000 * TARGETS['case_study_time_s']:.0f} ms); "
                 f"paper {p_states}/{p_edges}")
         if have_spot:
-            aut = spot.translate(ltl.to_str(f), "BA", "sbacc")
+            aut = spot.translate(to_str(f), "BA", "sbacc")
             case.update(spot_states=aut.num_states(), spot_edges=aut.num_edges())
             line += f"; Spot {aut.num_states()}/{aut.num_edges()}"
         w(line + f"; {case['propositions']} propositions\n")

@@ -6,7 +6,8 @@ import argparse
 import sys
 
 from mrodrake.errors import UserError
-from mrodrake.logic import ltl
+from mrodrake.logic.formula import to_str
+from mrodrake.logic.parse import parse
 from mrodrake.logic.translate import translate
 
 __all__ = ["add_subparser", "run"]
@@ -52,8 +53,8 @@ def _collect(args) -> list[tuple[str, str]]:
 def run(args, out=None) -> int:
     """Handler of ``mrodrake ltl2nba``: print one HOA automaton per formula; returns the exit status."""
     out = out if out is not None else sys.stdout
-    formulas = [ltl.parse(text, source=source) for source, text in _collect(args)]
+    formulas = [parse(text, source=source) for source, text in _collect(args)]
     for f in formulas:
-        out.write(translate(f, backend=args.translator).to_hoa(name=ltl.to_str(f)))
+        out.write(translate(f, backend=args.translator).to_hoa(name=to_str(f)))
     out.flush()
     return 0

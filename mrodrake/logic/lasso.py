@@ -12,8 +12,26 @@ from __future__ import annotations
 from collections.abc import Sequence
 
 from mrodrake.errors import UserError
-from mrodrake.logic import ltl
-from mrodrake.logic.ltl import Formula
+from mrodrake.logic.formula import (
+    ALWAYS,
+    AND,
+    AP,
+    EQUIV,
+    EVENTUALLY,
+    FF,
+    IMPLIES,
+    NEXT,
+    NOT,
+    OR,
+    RELEASE,
+    STRONG_RELEASE,
+    TT,
+    UNTIL,
+    WEAK_UNTIL,
+    XOR,
+    Formula,
+)
+from mrodrake.logic.parse import parse
 
 __all__ = ["evaluate_lasso", "holds_at"]
 
@@ -36,7 +54,7 @@ def holds_at(f: Formula | str, prefix: Sequence, cycle: Sequence, ap: Sequence[s
     Letters are sets of the propositions that hold, or integer masks (bit ``i`` <-> ``ap[i]``).
     """
     if isinstance(f, str):
-        f = ltl.parse(f)
+        f = parse(f)
     if len(cycle) == 0:
         raise UserError("lasso: the cycle of a lasso word must not be empty")
     letters = _letters_to_sets(list(prefix) + list(cycle), ap)
@@ -74,45 +92,45 @@ def holds_at(f: Formula | str, prefix: Sequence, cycle: Sequence, ap: Sequence[s
         if r is not None:
             return r
         k = g.kind
-        if k == ltl.TT:
+        if k == TT:
             r = full
-        elif k == ltl.FF:
+        elif k == FF:
             r = 0
-        elif k == ltl.AP:
+        elif k == AP:
             r = 0
             for i, letter in enumerate(letters):
                 if g.name in letter:
                     r |= 1 << i
-        elif k == ltl.NOT:
+        elif k == NOT:
             r = full & ~ev(g.args[0])
-        elif k == ltl.AND:
+        elif k == AND:
             r = full
             for h in g.args:
                 r &= ev(h)
-        elif k == ltl.OR:
+        elif k == OR:
             r = 0
             for h in g.args:
                 r |= ev(h)
-        elif k == ltl.IMPLIES:
+        elif k == IMPLIES:
             r = (full & ~ev(g.args[0])) | ev(g.args[1])
-        elif k == ltl.EQUIV:
+        elif k == EQUIV:
             r = full & ~(ev(g.args[0]) ^ ev(g.args[1]))
-        elif k == ltl.XOR:
+        elif k == XOR:
             r = ev(g.args[0]) ^ ev(g.args[1])
-        elif k == ltl.NEXT:
+        elif k == NEXT:
             r = succ(ev(g.args[0]))
-        elif k == ltl.EVENTUALLY:
+        elif k == EVENTUALLY:
             r = lfp(full, ev(g.args[0]))
-        elif k == ltl.ALWAYS:
+        elif k == ALWAYS:
             r = gfp(0, ev(g.args[0]))
-        elif k == ltl.UNTIL:
+        elif k == UNTIL:
             r = lfp(ev(g.args[0]), ev(g.args[1]))
-        elif k == ltl.RELEASE:
+        elif k == RELEASE:
             r = gfp(ev(g.args[0]), ev(g.args[1]))
-        elif k == ltl.WEAK_UNTIL:
+        elif k == WEAK_UNTIL:
             a, b = ev(g.args[0]), ev(g.args[1])
             r = gfp(b, a | b)  # a W b = b R (a | b)
-        elif k == ltl.STRONG_RELEASE:
+        elif k == STRONG_RELEASE:
             a, b = ev(g.args[0]), ev(g.args[1])
             r = lfp(b, a & b)  # a M b = b U (a & b)
         else:

@@ -13,8 +13,8 @@ from __future__ import annotations
 from collections.abc import Iterable, Sequence
 
 from mrodrake.errors import UserError
-from mrodrake.logic import ltl
 from mrodrake.logic.bdd import BDD, Cube, Guard
+from mrodrake.logic.formula import Ap, to_str
 from mrodrake.logic.graph import LazySucc, reachable, sccs
 
 __all__ = ["NBA", "TRUE_GUARD", "simplify_guard", "guard_implies", "guard_to_str", "empty_nba"]
@@ -49,7 +49,7 @@ def guard_to_str(guard: Sequence[Cube], ap: Sequence[str] | None = None, hoa: bo
         i = 0
         while m >> i:
             if m >> i & 1:
-                name = str(i) if hoa else ltl.to_str(ltl.Ap(ap[i]))
+                name = str(i) if hoa else to_str(Ap(ap[i]))
                 lits.append(name if p >> i & 1 else "!" + name)
             i += 1
         if not lits:

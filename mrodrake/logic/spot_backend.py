@@ -7,10 +7,10 @@ explains how to install it when it is missing.
 from __future__ import annotations
 
 from mrodrake.errors import UserError
-from mrodrake.logic import ltl
+from mrodrake.logic.formula import Formula, atoms, to_str
 from mrodrake.logic.hoa import read_hoa
-from mrodrake.logic.ltl import Formula
 from mrodrake.logic.nba import NBA
+from mrodrake.logic.parse import parse
 
 __all__ = ["spot_available", "import_spot", "translate_spot"]
 
@@ -39,7 +39,7 @@ def translate_spot(f: Formula | str) -> NBA:
     ``f`` (the same ``ap`` order as the built-in translator)."""
     spot = import_spot()
     if isinstance(f, str):
-        f = ltl.parse(f)
-    aut = spot.translate(spot.formula(ltl.to_str(f)), "BA", "sbacc")
+        f = parse(f)
+    aut = spot.translate(spot.formula(to_str(f)), "BA", "sbacc")
     nba = read_hoa(aut.to_str("hoa"), source="spot")
-    return nba.with_ap(tuple(sorted(ltl.atoms(f))))
+    return nba.with_ap(tuple(sorted(atoms(f))))

@@ -57,8 +57,9 @@ from pathlib import Path
 from threadpoolctl import threadpool_limits
 
 from mrodrake.errors import NoPlanFound, UserError
-from mrodrake.logic.ltl import Formula, atoms, parse
+from mrodrake.logic.formula import Formula, atoms
 from mrodrake.logic.nba import NBA
+from mrodrake.logic.parse import parse
 from mrodrake.logic.translate import translate
 from mrodrake.planning.decide import EXACT_BOUND, decide
 from mrodrake.planning.exact import check_power, solve_exact, solve_exact_graph

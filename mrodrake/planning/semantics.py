@@ -40,7 +40,7 @@ from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import breadth_first_order, connected_components
 
 from mrodrake.geometry import grasp_layout
-from mrodrake.logic.ltl import Formula, Not, atoms
+from mrodrake.logic.formula import Formula, Not, atoms
 from mrodrake.logic.nba import NBA
 from mrodrake.logic.translate import translate
 from mrodrake.ts import Action, Navigate, State, TransitionSystem, Transport

@@ -7,7 +7,7 @@ from threadpoolctl import threadpool_limits
 from mrodrake.campaign import load_campaign, randomized_scenario
 from mrodrake.planning.plan import plan_scenario
 
-#: The randomization of the issue-13 campaign (scenarios/campaigns/issue13.yaml).
+#: The randomization of scenarios/campaigns/success_across_maps.yaml.
 RANDOMIZE = """
 randomize:
   seed: 13
@@ -21,7 +21,7 @@ randomize:
 
 def campaign_mission(tmp_path, generate: str, mission_id: str):
     """(task, randomized scenario, plan) of the first mission of a campaign of the one ``generate`` entry
-    (YAML flow mapping) with the issue-13 randomization; the mission must be ``mission_id``."""
+    (YAML flow mapping) with that campaign's randomization; the mission must be ``mission_id``."""
     spec = tmp_path / "spec.yaml"
     spec.write_text(f"name: regression\nscenarios:\n  - generate: {generate}\n{RANDOMIZE}")
     task = load_campaign(spec).tasks[0]

@@ -2,16 +2,16 @@
 
 from hypothesis import strategies as st
 
-from mrodrake.logic import ltl
+from mrodrake.logic.formula import FALSE, TRUE, And, Ap, Equiv, F, G, Implies, M, Not, Or, R, U, W, X, Xor
 
-UNARY = (ltl.Not, ltl.X, ltl.F, ltl.G)
-BINARY = (ltl.And, ltl.Or, ltl.Implies, ltl.Equiv, ltl.Xor, ltl.U, ltl.R, ltl.W, ltl.M)
+UNARY = (Not, X, F, G)
+BINARY = (And, Or, Implies, Equiv, Xor, U, R, W, M)
 PROPS = ("a", "b", "c", "d")
 
 
 def formulas(props=PROPS, max_depth: int = 5):
     """Formulas of depth <= ``max_depth`` using every operator, over ``props`` (plus the constants)."""
-    leaves = st.one_of(st.sampled_from([ltl.Ap(p) for p in props]), st.sampled_from([ltl.TRUE, ltl.FALSE]))
+    leaves = st.one_of(st.sampled_from([Ap(p) for p in props]), st.sampled_from([TRUE, FALSE]))
 
     def level(depth):
         if depth == 0:

@@ -5,9 +5,9 @@ import pytest
 from hypothesis import given, settings
 
 from mrodrake.errors import UserError
-from mrodrake.logic import ltl
 from mrodrake.logic.hoa import read_hoa
 from mrodrake.logic.lasso import evaluate_lasso
+from mrodrake.logic.parse import parse
 from mrodrake.logic.translate import translate
 
 from .strategies import formulas_3_or_4_props
@@ -65,7 +65,7 @@ State: 0
 """
     nba = read_hoa(hoa)
     assert nba.ap == ("a",) and nba.num_states == 2 and len(nba.accepting) == 1
-    f = ltl.parse("G F a")
+    f = parse("G F a")
     for prefix, cycle in _words(("a",)):
         assert nba.accepts_lasso(prefix, cycle) == evaluate_lasso(f, prefix, cycle)
 
@@ -96,7 +96,7 @@ State: [0&!1] 2
 State: [0&!1] 1 {0}
 1
 --END--"""
-    f = ltl.parse("F G (a & !b)")
+    f = parse("F G (a & !b)")
     nba = read_hoa(explicit)
     for prefix, cycle in _words(("a", "b")):
         assert nba.accepts_lasso(prefix, cycle) == evaluate_lasso(f, prefix, cycle)
@@ -118,7 +118,7 @@ State: 1 {0}
 1 1 1 1
 --END--"""
     nba = read_hoa(hoa)  # letter 1 (a & !b) leads to the accepting sink: F(a & !b)
-    f = ltl.parse("F(a & !b)")
+    f = parse("F(a & !b)")
     for prefix, cycle in _words(("a", "b"), seed=2):
         assert nba.accepts_lasso(prefix, cycle) == evaluate_lasso(f, prefix, cycle)
 
@@ -137,7 +137,7 @@ State: 1
 [!0] 1
 --END--"""
     nba = read_hoa(hoa)  # G a | G !a
-    f = ltl.parse("G a | G !a")
+    f = parse("G a | G !a")
     for prefix, cycle in _words(("a",), seed=3):
         assert nba.accepts_lasso(prefix, cycle) == evaluate_lasso(f, prefix, cycle)
 

@@ -4,7 +4,23 @@ import pytest
 from hypothesis import given, settings
 
 from mrodrake.errors import UserError
-from mrodrake.logic import ltl
+from mrodrake.logic.formula import (
+    ALWAYS,
+    AND,
+    AP,
+    EQUIV,
+    EVENTUALLY,
+    FF,
+    IMPLIES,
+    NEXT,
+    NOT,
+    OR,
+    RELEASE,
+    TT,
+    UNTIL,
+    WEAK_UNTIL,
+    XOR,
+)
 from mrodrake.logic.lasso import evaluate_lasso, holds_at
 
 from .strategies import formulas, lassos
@@ -67,45 +83,45 @@ def _naive(f, letters, loop, i, depth=0):
 
     kind, args = f.kind, f.args
     horizon = range(i, i + 2 * n + 1)
-    if kind == ltl.TT:
+    if kind == TT:
         return True
-    if kind == ltl.FF:
+    if kind == FF:
         return False
-    if kind == ltl.AP:
+    if kind == AP:
         return f.name in letters[i]
-    if kind == ltl.NOT:
+    if kind == NOT:
         return not sat(args[0], i)
-    if kind == ltl.AND:
+    if kind == AND:
         return all(sat(g, i) for g in args)
-    if kind == ltl.OR:
+    if kind == OR:
         return any(sat(g, i) for g in args)
-    if kind == ltl.IMPLIES:
+    if kind == IMPLIES:
         return (not sat(args[0], i)) or sat(args[1], i)
-    if kind == ltl.EQUIV:
+    if kind == EQUIV:
         return sat(args[0], i) == sat(args[1], i)
-    if kind == ltl.XOR:
+    if kind == XOR:
         return sat(args[0], i) != sat(args[1], i)
-    if kind == ltl.NEXT:
+    if kind == NEXT:
         return sat(args[0], i + 1)
-    if kind == ltl.EVENTUALLY:
+    if kind == EVENTUALLY:
         return any(sat(args[0], k) for k in horizon)
-    if kind == ltl.ALWAYS:
+    if kind == ALWAYS:
         return all(sat(args[0], k) for k in horizon)
     x, y = args
-    if kind in (ltl.UNTIL, ltl.WEAK_UNTIL):
+    if kind in (UNTIL, WEAK_UNTIL):
         for k in horizon:
             if sat(y, k):
                 return True
             if not sat(x, k):
                 return False
-        return kind == ltl.WEAK_UNTIL  # x held over a whole period: forever
+        return kind == WEAK_UNTIL  # x held over a whole period: forever
     # a R b: b holds up to and including the first a (forever if no a); a M b additionally needs that a
     for k in horizon:
         if not sat(y, k):
             return False
         if sat(x, k):
             return True
-    return kind == ltl.RELEASE
+    return kind == RELEASE
 
 
 @settings(max_examples=300, deadline=None)

@@ -7,8 +7,27 @@ import pytest
 from hypothesis import given, settings
 
 from mrodrake.errors import UserError
-from mrodrake.logic import ltl
-from mrodrake.logic.ltl import FALSE, TRUE, And, Ap, Equiv, F, G, Implies, M, Not, Or, R, U, W, X, Xor, atoms, parse
+from mrodrake.logic.formula import (
+    FALSE,
+    TRUE,
+    And,
+    Ap,
+    Equiv,
+    F,
+    G,
+    Implies,
+    M,
+    Not,
+    Or,
+    R,
+    U,
+    W,
+    X,
+    Xor,
+    atoms,
+    to_str,
+)
+from mrodrake.logic.parse import MAX_DEPTH, parse
 from mrodrake.logic.translate import translate
 
 from .strategies import formulas
@@ -179,7 +198,7 @@ def test_printer_uses_minimal_readable_parentheses():
 @settings(max_examples=300, deadline=None)
 @given(formulas())
 def test_printer_round_trips(f):
-    text = ltl.to_str(f)
+    text = to_str(f)
     assert text == str(f)
     assert parse(text) is f
 
@@ -193,18 +212,18 @@ def test_deep_parentheses_parse_without_recursion():
 
 
 def test_trees_up_to_the_depth_limit_translate_and_deeper_ones_are_rejected_at_their_operator():
-    f = parse("X " * (ltl.MAX_DEPTH - 1) + "a")
-    assert f.depth == ltl.MAX_DEPTH
-    assert translate(f).num_states == ltl.MAX_DEPTH + 1  # X^199 a: a chain of 200 states plus the sink
+    f = parse("X " * (MAX_DEPTH - 1) + "a")
+    assert f.depth == MAX_DEPTH
+    assert translate(f).num_states == MAX_DEPTH + 1  # X^199 a: a chain of 200 states plus the sink
     with pytest.raises(UserError) as ei:
-        parse("X " * ltl.MAX_DEPTH + "a")
-    assert str(ei.value) == (f"formula:1: formula nested deeper than {ltl.MAX_DEPTH} operators "
+        parse("X " * MAX_DEPTH + "a")
+    assert str(ei.value) == (f"formula:1: formula nested deeper than {MAX_DEPTH} operators "
                              "(the limit of the LTL translation)")
     assert ei.value.detail.splitlines()[1] == "^"  # the outermost X, at column 1
 
 
 def test_deep_macro_chains_are_rejected_with_the_macro_named():
-    macros = {f"m{i}": f"m{i + 1}" for i in range(ltl.MAX_DEPTH + 5)}
-    macros[f"m{ltl.MAX_DEPTH + 5}"] = "a"
+    macros = {f"m{i}": f"m{i + 1}" for i in range(MAX_DEPTH + 5)}
+    macros[f"m{MAX_DEPTH + 5}"] = "a"
     with pytest.raises(UserError, match=r"^task\.propositions\.m\d+: macros nested deeper than"):
         parse("m0", macros, macro_prefix="task.propositions.")

@@ -3,9 +3,10 @@
 import pytest
 from hypothesis import given, settings
 
-from mrodrake.logic import ltl
 from mrodrake.logic.lasso import evaluate_lasso
-from mrodrake.logic.ltl import is_nnf, nnf, parse, simplify
+from mrodrake.logic.nnf import is_nnf, nnf
+from mrodrake.logic.parse import parse
+from mrodrake.logic.simplify import simplify
 
 from .strategies import formulas, lassos
 
@@ -70,4 +71,4 @@ def test_nnf_and_simplify_preserve_semantics(f, word):
 def test_simplify_does_not_grow_much(f):
     # NNF expands <-> and xor, so compare with the NNF size; the rewrites themselves never grow a formula
     # by more than one node per rule application (e.g. F(a & s) -> F a & s).
-    assert simplify(f).size <= 2 * ltl.nnf(f).size
+    assert simplify(f).size <= 2 * nnf(f).size

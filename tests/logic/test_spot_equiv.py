@@ -2,10 +2,11 @@
 
 import pytest
 
-from mrodrake.logic import ltl
 from mrodrake.logic.data import load_case_study_formulas, load_dwyer_patterns
+from mrodrake.logic.formula import atoms, to_str
 from mrodrake.logic.hoa import read_hoa
 from mrodrake.logic.nba import NBA
+from mrodrake.logic.parse import parse
 from mrodrake.logic.translate import translate
 
 spot = pytest.importorskip("spot")
@@ -28,9 +29,9 @@ def test_random_formulas_are_language_equivalent():
     assert len(set(texts)) >= 300
     ours_total = spot_total = 0
     for text in texts:
-        f = ltl.parse(text)
+        f = parse(text)
         # our parser reads Spot's syntax exactly, and our printer writes formulas Spot reads back
-        assert spot.are_equivalent(spot.formula(ltl.to_str(f)), spot.formula(text)), text
+        assert spot.are_equivalent(spot.formula(to_str(f)), spot.formula(text)), text
         nba = translate(f)
         assert _equivalent(nba, text), text
         ours_total += nba.num_states
@@ -60,7 +61,7 @@ def test_case_study_formulas_are_language_equivalent():
 def test_spot_backend_matches_and_uses_sorted_propositions():
     for text in ["G(b -> F a)", "a U (c R b)", "G F a & F G !b", "false"]:
         nba = translate(text, backend="spot")
-        assert nba.ap == tuple(sorted(ltl.atoms(ltl.parse(text))))
+        assert nba.ap == tuple(sorted(atoms(parse(text))))
         assert _equivalent(nba, text)
 
 

@@ -9,10 +9,11 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from mrodrake.errors import UserError
-from mrodrake.logic import ltl
 from mrodrake.logic.data import load_case_study_formulas, load_dwyer_patterns
+from mrodrake.logic.formula import atoms
 from mrodrake.logic.lasso import evaluate_lasso
 from mrodrake.logic.nba import NBA, TRUE_GUARD, guard_implies, simplify_guard
+from mrodrake.logic.parse import parse
 from mrodrake.logic.translate import translate
 
 from .strategies import formulas_3_or_4_props, lassos
@@ -53,8 +54,8 @@ def test_dwyer_patterns_agree_with_the_evaluator():
     rng = np.random.default_rng(3)
     total = 0
     for text in patterns:
-        f = ltl.parse(text)
-        props = sorted(ltl.atoms(f))
+        f = parse(text)
+        props = sorted(atoms(f))
         _check_agreement(f, _random_lassos(rng, props, 40))
         total += translate(f).num_states
     # Spot 2.13 (translate(f, "BA", "sbacc")) needs 214 states in total; the bound is 1.5x that.
@@ -71,9 +72,9 @@ def _letter(*indices):
 
 
 def test_case_study_I_translates_small_and_correct():
-    f = ltl.parse(load_case_study_formulas()[0])
+    f = parse(load_case_study_formulas()[0])
     nba = translate(f)
-    assert len(ltl.atoms(f)) == 16
+    assert len(atoms(f)) == 16
     assert nba.num_states <= 6 and nba.num_edges <= 18  # the paper's NBA has 6 states and 18 transitions
     good = ([_letter(5), _letter(4)], [_letter(1), _letter(2), _letter(3)])
     assert nba.accepts_lasso(*good) and evaluate_lasso(f, *good)
@@ -90,9 +91,9 @@ def test_case_study_I_translates_small_and_correct():
 
 
 def test_case_study_II_translates_small():
-    f = ltl.parse(load_case_study_formulas()[1])
+    f = parse(load_case_study_formulas()[1])
     nba = translate(f)
-    assert len(ltl.atoms(f)) == 22
+    assert len(atoms(f)) == 22
     assert nba.num_states <= 8 and nba.num_edges <= 27  # the paper's NBA has 8 states and 27 transitions
     assert len(nba.accepting) == 1
 
@@ -124,7 +125,7 @@ def test_empty_and_universal_languages():
 def test_translation_is_deterministic():
     text = "G(a -> F(b & X c)) & (d U a)"
     n1 = translate(text)
-    n2 = translate(ltl.parse(text))
+    n2 = translate(parse(text))
     assert n1 == n2 and n1.to_hoa() == n2.to_hoa()
 
 

@@ -11,7 +11,7 @@ import pytest
 import yaml
 
 from mrodrake.errors import UserError
-from mrodrake.logic.ltl import atoms
+from mrodrake.logic.formula import atoms
 from mrodrake.planning.exact import check_power, immovable_objects, max_team_power, solve_exact
 from mrodrake.planning.plan import Plan, plan_scenario, task_nba
 from mrodrake.planning.semantics import ExecutedWords, relevant_mask

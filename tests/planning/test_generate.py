@@ -7,8 +7,9 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from mrodrake.logic.formula import atoms
 from mrodrake.logic.lasso import holds_at
-from mrodrake.logic.ltl import atoms, parse
+from mrodrake.logic.parse import parse
 from mrodrake.planning.exact import immovable_objects
 from mrodrake.planning.generate import MAPS, MAX_K, generate_scenario, load_map, shipped_maps
 from mrodrake.ts import TransitionSystem

@@ -10,18 +10,18 @@ import numpy as np
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from mrodrake.logic import ltl
+from mrodrake.logic.formula import And, Ap, F, G, Implies, Not, Or, R, U, X
 from mrodrake.logic.lasso import evaluate_lasso
 from mrodrake.logic.translate import translate
 from mrodrake.planning.semantics import ExecutedWords, check_plan_words, region_changing, relevant_mask
 
-UNARY = (ltl.Not, ltl.X, ltl.F, ltl.G)
-BINARY = (ltl.And, ltl.Or, ltl.Implies, ltl.U, ltl.R)
+UNARY = (Not, X, F, G)
+BINARY = (And, Or, Implies, U, R)
 PROPS = ("r1_p1", "r1_p2", "r2_p1", "r2_p3", "o1_p1", "o1_p3")
 
 
 def small_formulas(max_depth: int = 3):
-    leaves = st.sampled_from([ltl.Ap(p) for p in PROPS])
+    leaves = st.sampled_from([Ap(p) for p in PROPS])
 
     def level(depth):
         if depth == 0:

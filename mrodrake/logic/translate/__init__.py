@@ -1,7 +1,7 @@
 """LTL -> state-based Büchi automaton, after Gastin & Oddoux, "Fast LTL to Büchi automata translation",
 CAV 2001, LNCS 2102, pp. 53-65, plus the usual reductions:
 
-1. formula simplification (:func:`mrodrake.logic.ltl.simplify`);
+1. formula simplification (:func:`mrodrake.logic.simplify`);
 2. very weak alternating automaton (:mod:`.vwaa`, Gastin & Oddoux Sec. 3);
 3. generalized Büchi automaton (:mod:`.gba`, Sec. 4), quotiented by bisimulation (:mod:`.reduce`);
 4. counter-based degeneralization (:mod:`.degen`, Sec. 5), trying several orders of the acceptance sets;
@@ -17,10 +17,11 @@ from __future__ import annotations
 import itertools
 
 from mrodrake.errors import UserError
-from mrodrake.logic import ltl
 from mrodrake.logic.bdd import BDD
-from mrodrake.logic.ltl import Formula
+from mrodrake.logic.formula import Formula, Not, atoms
 from mrodrake.logic.nba import NBA, empty_nba
+from mrodrake.logic.parse import parse
+from mrodrake.logic.simplify import simplify
 from mrodrake.logic.spot_backend import translate_spot
 from mrodrake.logic.translate.ba import BA, intersection_empty
 from mrodrake.logic.translate.degen import degeneralize
@@ -38,14 +39,14 @@ def translate(f: Formula | str, backend: str = "builtin") -> NBA:
     ``ap`` of the result is the sorted tuple of the formula's propositions.
     """
     if isinstance(f, str):
-        f = ltl.parse(f)
+        f = parse(f)
     if backend == "spot":
         return translate_spot(f)
     if backend != "builtin":
         raise UserError(f"translator: unknown backend '{backend}' (expected 'builtin' or 'spot')")
-    ap = tuple(sorted(ltl.atoms(f)))
+    ap = tuple(sorted(atoms(f)))
     ap_index = {a: i for i, a in enumerate(ap)}
-    g = ltl.simplify(f)
+    g = simplify(f)
     bdd = BDD()
     ba = _translate_core(g, ap_index, bdd)
     if ba is None:
@@ -97,7 +98,7 @@ def _try_wdba(g: Formula, ba: BA, ap_index: dict[str, int]) -> BA | None:
     if not syntactic_class(g, {})[2]:
         if not intersection_empty(ba, comp):
             return None
-        neg = _translate_core(ltl.simplify(ltl.Not(g)), ap_index, ba.bdd)
+        neg = _translate_core(simplify(Not(g)), ap_index, ba.bdd)
         if neg is not None and not intersection_empty(wd, neg):
             return None
     return wd.prune(False)

@@ -5,7 +5,7 @@ state, dominated transitions removed.  Guards are BDDs."""
 from __future__ import annotations
 
 from mrodrake.logic.bdd import BDD
-from mrodrake.logic.ltl import Formula
+from mrodrake.logic.formula import Formula
 from mrodrake.logic.translate.vwaa import UNTIL_KINDS, VWAA
 
 __all__ = ["build_gba"]

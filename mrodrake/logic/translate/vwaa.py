@@ -4,14 +4,28 @@ Def. 2, here extended to ``F G W M``), with the transition-domination simplifica
 
 from __future__ import annotations
 
-from mrodrake.logic import ltl
 from mrodrake.logic.bdd import Cube
-from mrodrake.logic.ltl import Formula
+from mrodrake.logic.formula import (
+    ALWAYS,
+    AND,
+    AP,
+    EVENTUALLY,
+    FF,
+    NEXT,
+    NOT,
+    OR,
+    RELEASE,
+    STRONG_RELEASE,
+    TT,
+    UNTIL,
+    WEAK_UNTIL,
+    Formula,
+)
 
 __all__ = ["VWAA", "UNTIL_KINDS"]
 
 # The until-like states: the VWAA's co-Büchi final states, the GBA's acceptance sets.
-UNTIL_KINDS = (ltl.UNTIL, ltl.EVENTUALLY, ltl.STRONG_RELEASE)
+UNTIL_KINDS = (UNTIL, EVENTUALLY, STRONG_RELEASE)
 
 
 def _dominance_reduce(ts: list[tuple]) -> list[tuple]:
@@ -73,7 +87,7 @@ class VWAA:
         return i
 
     def literal(self, f: Formula) -> Cube:
-        if f.kind == ltl.AP:
+        if f.kind == AP:
             return (1 << self.ap_index[f.name], 0)
         return (0, 1 << self.ap_index[f.args[0].name])
 
@@ -83,15 +97,15 @@ class VWAA:
         if r is not None:
             return r
         k = f.kind
-        if k == ltl.TT:
+        if k == TT:
             r = [0]
-        elif k == ltl.FF:
+        elif k == FF:
             r = []
-        elif k == ltl.AND:
+        elif k == AND:
             r = [0]
             for g in f.args:
                 r = _minimal_sets([a | b for a in r for b in self.bar(g)])
-        elif k == ltl.OR:
+        elif k == OR:
             r = _minimal_sets([c for g in f.args for c in self.bar(g)])
         else:
             r = [1 << self.state(f)]
@@ -104,18 +118,18 @@ class VWAA:
         if r is not None:
             return r
         k = f.kind
-        if k == ltl.TT:
+        if k == TT:
             r = [(0, 0, 0)]
-        elif k == ltl.FF:
+        elif k == FF:
             r = []
-        elif k in (ltl.AP, ltl.NOT):
+        elif k in (AP, NOT):
             p, n = self.literal(f)
             r = [(p, n, 0)]
-        elif k == ltl.AND:
+        elif k == AND:
             r = [(0, 0, 0)]
             for g in f.args:
                 r = _product(r, self.dprime(g))
-        elif k == ltl.OR:
+        elif k == OR:
             r = _dominance_reduce([t for g in f.args for t in self.dprime(g)])
         else:
             r = self.delta(self.state(f))
@@ -130,22 +144,22 @@ class VWAA:
         f = self.states[i]
         k = f.kind
         me = [(0, 0, 1 << i)]
-        if k in (ltl.AP, ltl.NOT):
+        if k in (AP, NOT):
             p, n = self.literal(f)
             r = [(p, n, 0)]
-        elif k == ltl.NEXT:
+        elif k == NEXT:
             r = [(0, 0, c) for c in self.bar(f.args[0])]
-        elif k == ltl.EVENTUALLY:
+        elif k == EVENTUALLY:
             r = _dominance_reduce(self.dprime(f.args[0]) + me)
-        elif k == ltl.ALWAYS:
+        elif k == ALWAYS:
             r = _product(self.dprime(f.args[0]), me)
-        elif k in (ltl.UNTIL, ltl.WEAK_UNTIL):
+        elif k in (UNTIL, WEAK_UNTIL):
             a, b = f.args
             r = _dominance_reduce(self.dprime(b) + _product(self.dprime(a), me))
-        elif k == ltl.RELEASE:
+        elif k == RELEASE:
             a, b = f.args
             r = _product(self.dprime(b), _dominance_reduce(self.dprime(a) + me))
-        elif k == ltl.STRONG_RELEASE:
+        elif k == STRONG_RELEASE:
             a, b = f.args
             r = _dominance_reduce(_product(self.dprime(a), self.dprime(b)) + _product(self.dprime(b), me))
         else:

@@ -7,9 +7,8 @@ checking", MFCS 2003."""
 
 from __future__ import annotations
 
-from mrodrake.logic import ltl
+from mrodrake.logic.formula import ALWAYS, AND, EVENTUALLY, NEXT, NOT, OR, RELEASE, STRONG_RELEASE, UNTIL, Formula
 from mrodrake.logic.graph import sccs
-from mrodrake.logic.ltl import Formula
 from mrodrake.logic.translate.ba import BA
 
 __all__ = ["syntactic_class", "minimal_wdba"]
@@ -23,23 +22,23 @@ def syntactic_class(f: Formula, memo: dict) -> tuple[bool, bool, bool]:
     if r is not None:
         return r
     k = f.kind
-    if not f.args or k == ltl.NOT:
+    if not f.args or k == NOT:
         r = (True, True, True)
     else:
         sub = [syntactic_class(g, memo) for g in f.args]
-        if k in (ltl.AND, ltl.OR, ltl.NEXT):
+        if k in (AND, OR, NEXT):
             r = (all(c[0] for c in sub), all(c[1] for c in sub), all(c[2] for c in sub))
-        elif k == ltl.ALWAYS:
+        elif k == ALWAYS:
             r = (sub[0][0], False, sub[0][0])
-        elif k == ltl.EVENTUALLY:
+        elif k == EVENTUALLY:
             r = (False, sub[0][1], sub[0][1])
         else:
             a, b = sub
-            if k == ltl.UNTIL:
+            if k == UNTIL:
                 r = (False, a[1] and b[1], a[2] and b[1])
-            elif k == ltl.STRONG_RELEASE:
+            elif k == STRONG_RELEASE:
                 r = (False, a[1] and b[1], a[1] and b[2])
-            elif k == ltl.RELEASE:
+            elif k == RELEASE:
                 r = (a[0] and b[0], False, a[2] and b[0])
             else:  # W
                 r = (a[0] and b[0], False, a[0] and b[2])
