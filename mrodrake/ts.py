@@ -204,10 +204,32 @@ class TransitionSystem:
         """Regions an entity of ``radius`` can ever get to from region k (travelling region to region)."""
         return sorted(reachable(self.connections(radius), k))
 
+    def smallest_team_radius(self, j: int) -> float | None:
+        """A lower bound on the covering radius of every team powerful enough to carry object j (None when
+        no team is): exact over all teams up to 12 robots; beyond, the smallest c such that the robots whose
+        one-robot covering radius is at most c are together strong enough (a team's covering radius is at
+        least each of its members' one-robot radii, :func:`~mrodrake.geometry.grasp_layout`)."""
+        key = ("team", j)
+        if key in self._cover:
+            return self._cover[key]
+        r = None
+        if self.N <= 12:
+            radii = [self.covering_radius(j, t) for n in range(1, self.N + 1)
+                     for t in itertools.combinations(range(self.N), n) if self.team_power_ok(t, j)]
+            r = min(radii) if radii else None
+        else:
+            power = 0.0
+            for c, i in sorted((self.covering_radius(j, (i,)), i) for i in range(self.N)):
+                power += self.power[i]
+                if power >= self.required_power[j]:
+                    r = c
+                    break
+        self._cover[key] = r
+        return r
+
     def unreachable(self) -> list[str]:
         """One line per entity that can never reach some region from where it starts: robots by their
-        radius, objects by the smallest covering radius of a team powerful enough to carry them (teams of
-        up to 12 robots are enumerated, of up to 4 beyond 12 robots)."""
+        radius, objects by :meth:`smallest_team_radius`."""
         out = []
         names = self.region_names
         for i in range(self.N):
@@ -218,12 +240,9 @@ class TransitionSystem:
                            f"{', '.join(miss)} from {names[k]}: {_NO_PASSAGE}")
         for j in range(self.M):
             k = self.initial[self.N + j]
-            largest = self.N if self.N <= 12 else 4
-            teams = [t for n in range(1, largest + 1) for t in itertools.combinations(range(self.N), n)
-                     if self.team_power_ok(t, j)]
-            if not teams:
+            r = self.smallest_team_radius(j)
+            if r is None:
                 continue
-            r = min(self.covering_radius(j, t) for t in teams)
             miss = [names[m] for m in range(self.K) if m not in self.reach(r, k)]
             if miss:
                 out.append(f"object {self.object_names[j]} can never be carried to {', '.join(miss)} from "

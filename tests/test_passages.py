@@ -64,3 +64,36 @@ def test_validate_reports_the_blocked_travel(tmp_path, capsys):
     assert out[1:] == [f"{path}: object o1 can never be carried to p2 from p1: no passage wide enough (walls, "
                        "obstacles and other regions grown by the radius + 0.5 m) for its smallest team (covering "
                        "radius 1.90 m)"]
+
+
+def _strong_team_door(width: float) -> dict:
+    """Two rooms joined by a door; o1 needs all six robots: one robot with o1 passes the door, the six do not."""
+    lo, hi = 8.0 - width / 2, 8.0 + width / 2
+    return {
+        "name": "strong_team_door",
+        "workspace": {"boundary": [[0, 0], [20, 0], [20, lo], [21, lo], [21, 0], [41, 0], [41, 16], [21, 16],
+                                   [21, hi], [20, hi], [20, 16], [0, 16]]},
+        "regions": [{"name": "p1", "center": [5.0, 4.0], "radius": 2.5},
+                    {"name": "p2", "center": [5.0, 12.0], "radius": 2.5},
+                    {"name": "p3", "center": [14.0, 8.0], "radius": 2.5},
+                    {"name": "p4", "center": [30.0, 8.0], "radius": 2.5}],
+        "robots": [{"name": f"r{i + 1}", "mass": 1.0, "radius": 0.5, "power": 1, "initial_region": k}
+                   for i, k in enumerate(["p1", "p1", "p2", "p2", "p4", "p4"])],
+        "objects": [{"name": "o1", "mass": 0.25, "radius": 0.1, "required_power": 6, "initial_region": "p3"}],
+        "task": {"formula": "F o1_p4 & G F r1_p4"},
+    }
+
+
+def test_the_power_a_team_needs_decides_which_doors_its_object_passes():
+    """Walls grown by r + 0.5 m: a 3.8 m door passes covering radius 1.2 m (one robot with o1), not 1.6 m (all
+    six, evenly spaced around o1); the relaxation uses the second, so the task is refuted without sampling."""
+    ts = TransitionSystem(scenario_from_dict(_strong_team_door(3.8)))
+    one, six = ts.covering_radius(0, (0,)), ts.covering_radius(0, tuple(range(6)))
+    assert one == pytest.approx(1.2) and six == pytest.approx(1.6)
+    assert ts.smallest_team_radius(0) == pytest.approx(six)
+    assert ts.connected(one, 2, 3) and not ts.connected(six, 2, 3)
+    with pytest.raises(UserError) as e:
+        plan_scenario(scenario_from_dict(_strong_team_door(3.8)), iterations=1)
+    msg = str(e.value)
+    assert msg.startswith("task is unsatisfiable: no accepting cycle of the NBA")
+    assert "object o1 can never be carried to p4 from p3" in msg and "covering radius 1.60 m" in msg

@@ -57,14 +57,14 @@ def ts_state_bound(ts: TransitionSystem) -> int:
     return ts.K ** (ts.N + ts.M) * (ts.M + 1) ** ts.N
 
 
-def decide(ts: TransitionSystem, nba: NBA, relevant: int, relax_seconds: float = 5.0, exact_edges: int = EXACT_EDGES,
+def decide(ts: TransitionSystem, nba: NBA, relevant: int, exact_edges: int = EXACT_EDGES,
            banned: tuple[tuple[State, State], ...] = ()) -> Decision:
     """Raise UserError("task is unsatisfiable: ...") when a relaxation or the over-approximating product
     proves it; otherwise the :class:`Decision` (module docstring).  ``banned``: TS transitions the exact
     plan must avoid (placement rejected them); they never enter a proof."""
     t0 = time.perf_counter()
     relax = Relaxations(ts, nba, relevant)
-    proof = relax.prove(relax_seconds)
+    proof = relax.prove()
     stats = dict(relax.stats)
     if proof is not None:
         raise UserError(proof + blocked_note(ts))

@@ -1021,6 +1021,20 @@ class _Placer:
                         break
                 if sol is not None:
                     break
+            # teams that form one after another need not all fit at once: reserve the disks of the objects
+            # grasped first only (each later grasp checks its disk when it forms)
+            later = sorted((n for n, e in enumerate(ents) if e >= N and radii[n] > self.radii[e]),
+                           key=lambda n: (-self.first_grasp(ents[n] - N, 0), ents[n]))
+            for drop in range(1, len(later) + 1):
+                if sol is not None:
+                    break
+                fewer = list(radii)
+                for n in later[:drop]:
+                    fewer[n] = float(self.radii[ents[n]])
+                for attempt in range(SEEDS):
+                    sol = self.place_in(k, fewer, [], [], attempt)
+                    if sol is not None:
+                        break
             if sol is None:
                 raise PlacementError(f"initial state: region '{self.ts.region_names[k]}': the entities "
                                      f"{', '.join((self.ts.robot_names + self.ts.object_names)[e] for e in everyone)} "

@@ -7,8 +7,9 @@ A *relaxation* keeps, for a set E of entities, each entity's own motion and forg
 them or constrains the others:
 
 * an entity is in a region or between two regions (leaving k for k', then entering k'); it travels only
-  between regions connected for its radius (robots) or for the smallest covering radius any team can have
-  (objects: ``r_o + gap + 2 min r_i``, :func:`~mrodrake.geometry.grasp_layout`); objects no team can move
+  between regions connected for its radius (robots) or for the smallest covering radius a team strong
+  enough to carry it can have (objects: :meth:`~mrodrake.ts.TransitionSystem.smallest_team_radius`; a
+  larger radius only removes connections); objects no team can move
   (:func:`~mrodrake.planning.exact.immovable_objects`) and robots without a passage never move;
 * packing (P_s), step capacity, Λ and grasping are dropped: entities of E move independently, one visible
   crossing per letter, any number of invisible ones (ε, closed over);
@@ -43,6 +44,8 @@ PRODUCT_LIMIT = 200_000
 EDGE_LIMIT = 4_000_000
 #: At most this many entity pairs are tried.
 MAX_PAIRS = 40
+#: The relaxations tried together build at most this many abstract product states.
+TOTAL_LIMIT = 2_000_000
 
 
 @dataclass(frozen=True)
@@ -80,11 +83,8 @@ def entity_connections(ts: TransitionSystem, immovable) -> list[np.ndarray]:
     for i in range(ts.N):
         out.append(ts.connections(ts.robot_radius[i]).copy())
     for j in range(ts.M):
-        if j in immovable or ts.N == 0:
-            out.append(np.zeros((K, K), dtype=bool))
-        else:
-            r = min(ts.covering_radius(j, (i,)) for i in range(ts.N))
-            out.append(ts.connections(r).copy())
+        r = None if j in immovable else ts.smallest_team_radius(j)
+        out.append(np.zeros((K, K), dtype=bool) if r is None else ts.connections(r).copy())
     for C in out:
         np.fill_diagonal(C, False)
     return out
@@ -301,17 +301,18 @@ class Relaxations:
             out.append(("joint", tuple(self.mentioned)))
         return out
 
-    def prove(self, time_limit: float = 5.0) -> str | None:
-        """A one-line "task is unsatisfiable: ..." when some relaxation has no accepting lasso, else None."""
+    def prove(self) -> str | None:
+        """A one-line "task is unsatisfiable: ..." when some relaxation has no accepting lasso, else None
+        (the relaxations of :meth:`candidates` in order, within :data:`PRODUCT_LIMIT` each and
+        :data:`TOTAL_LIMIT` together)."""
         t0 = time.perf_counter()
-        tried = 0
+        tried, work = 0, 0
         for kind, es in self.candidates():
-            if time.perf_counter() - t0 > time_limit:
-                break
             size = self.size(es)
-            if size > PRODUCT_LIMIT:
+            if size > PRODUCT_LIMIT or work + size > TOTAL_LIMIT:
                 continue
             tried += 1
+            work += size
             if not self.accepts(es):
                 self.stats.update(relaxations_tried=tried, relaxation=kind,
                                   relaxation_seconds=time.perf_counter() - t0)

@@ -53,7 +53,7 @@ def test_a_letter_between_regions_satisfies_a_task():
 def test_each_relaxation_proves_its_task_unsatisfiable(case1, formula, kind, words):
     sc = _with_task("case_study_1", formula)
     ts, f, nba, relax = _relax(sc)
-    msg = relax.prove(time_limit=30.0)
+    msg = relax.prove()
     assert relax.stats["relaxation"] == kind
     assert msg.startswith("task is unsatisfiable: ") and words in msg and "\n" not in msg
     with pytest.raises(UserError) as e:
@@ -86,7 +86,7 @@ def _formulas():
 def test_relaxations_never_prove_a_satisfiable_task_unsatisfiable(formula, loop):
     sc = _with_task("tiny", f"({formula}) & {loop}")
     ts, f, nba, relax = _relax(sc)
-    proof = relax.prove(time_limit=30.0)
+    proof = relax.prove()
     try:
         solve_exact(ts, nba, relevant_mask(ts, f))
         sat = True

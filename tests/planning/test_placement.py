@@ -310,3 +310,35 @@ def test_a_released_robot_backs_off_out_of_the_disk_of_the_team_that_carries_on(
         assert blocked_departures(ts, pl) == []
         for sp in pl.steps:
             check_configuration(ts, sp.step.dst, np.asarray(sp.positions))
+
+
+def _generated(n, m, k, seed, formula=None, region_radius=None):
+    from mrodrake.planning.generate import generate_scenario_data
+
+    data = generate_scenario_data(n, m, k, seed, region_radius=region_radius)
+    if formula is not None:
+        data["task"] = {"formula": formula, "propositions": {}}
+    return scenario_from_dict(data)
+
+
+def test_teams_that_form_one_after_another_need_not_fit_at_once():
+    """o1 and o2 start in p1 (radius 4 m, by a wall); their teams' disks (1.96 m, 1.91 m) do not fit side by
+    side, but o1's team leaves before o2's forms: the initial layout reserves o1's disk only."""
+    plan = plan_scenario(_generated(2, 2, 3, 0, "F o1_p2 & F !o2_p1"), iterations=300, seed=0)
+    assert plan.stats["placement"]["rejected"] == []
+    ts = TransitionSystem(_generated(2, 2, 3, 0, "F o1_p2 & F !o2_p1"))
+    x = np.asarray(plan.placement.initial, dtype=float)
+    o1, o2 = ts.N, ts.N + 1
+    gap = float(np.hypot(*(x[o1] - x[o2])))
+    assert gap >= ts.covering_radius(0, (0,)) + ts.object_radius[1]
+    assert gap < ts.covering_radius(0, (0,)) + ts.covering_radius(1, (0, 1)) + ts.spacing
+
+
+@pytest.mark.slow
+def test_a_plan_placement_rejects_is_replaced_by_one_it_places():
+    """Five robots and three objects in three regions of radius 4 m: the first plan STyLuS* finds has a
+    transport into p3 with no room next to r3, r5 and o3; that step is banned and the next plan places."""
+    plan = plan_scenario(_generated(5, 3, 3, 5, region_radius=4.0), seed=0)
+    rejected = plan.stats["placement"]["rejected"]
+    assert len(rejected) >= 1 and all("region 'p" in r for r in rejected)
+    assert plan.placement is not None and plan.placement.steps
