@@ -1,15 +1,19 @@
-"""Whole missions that used to stop early on generated tasks (issue 13's reproducers): a false alarm of the
-label monitor (3, 1, 3, 11), no consistent order of concurrent actions (3, 2, 4, 15) and a mission that went
-numerically unstable (4, 2, 4, 21).  Each now plans on the executed-word semantics, places the whole run and
-executes to the end.  Several minutes each on the office map: slow set (``--runslow``).  A campaign mission on
-the corridor map whose goal maps beyond the circle barrier runs in the default set (~20 s)."""
+"""Whole missions on tasks that once stopped early: generated tasks with a false alarm of the label monitor
+(3, 1, 3, 11), no consistent order of concurrent actions (3, 2, 4, 15) and a numerically unstable primitive
+(4, 2, 4, 21), each several minutes on the office map (slow set, ``--runslow``); campaign missions on the
+corridor map; and an until-task on tiny that the executed-word semantics once called unsatisfiable."""
 
 from __future__ import annotations
 
 import pytest
 
+import yaml
+
 from mrodrake.planning.generate import generate_scenario
+from mrodrake.planning.plan import plan_scenario
 from mrodrake.run import run_mission
+from mrodrake.scenario import scenario_from_dict
+from tests.planning.conftest import SCENARIOS
 from tests.helpers.campaign import campaign_mission
 
 
@@ -48,3 +52,19 @@ def test_a_robot_parked_by_a_door_leaves_the_team_a_way_out(tmp_path):
     log = run_mission(sc, plan=plan, seed=task.layout_seed)
     assert log.ok, log.message
     assert log.steps_done == log.steps_total
+
+
+def test_an_until_task_whose_transport_crosses_far_apart_regions_runs():
+    """tiny with ``!r1_p2 U (o1_p3 & r1_p1)``: r2 comes to p1, r1 and r2 carry o1 to p3 (25 m away, so every
+    body leaves p1 before any enters p3) and r1 returns to p1 without entering p2.  The word where o1 enters p3
+    before r1 leaves p1 is geometrically impossible; the task is satisfiable and the mission keeps it."""
+    data = yaml.safe_load((SCENARIOS / "tiny.yaml").read_text())
+    data["task"] = {"formula": "(!r1_p2 U (o1_p3 & r1_p1))", "propositions": {}}
+    sc = scenario_from_dict(data)
+    plan = plan_scenario(sc, seed=0)
+    log = run_mission(sc, plan=plan, seed=0)
+    assert log.ok, log.message
+    assert log.steps_done == log.steps_total
+    labels = log.events[log.events["kind"] == "label"]
+    assert len(labels) and labels["ok"].all()
+    assert not any("r1_p2" in str(x).split() for x in labels["propositions"])
