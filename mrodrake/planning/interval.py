@@ -19,7 +19,7 @@ from scipy.sparse.csgraph import breadth_first_order, connected_components
 from mrodrake.logic.nba import NBA
 from mrodrake.ts import ExplicitTS, TransitionSystem
 
-#: TS transitions per chunk of the product construction (bounds its temporaries).
+#: Label pairs per chunk of the product construction (bounds its temporaries).
 CHUNK = 200_000
 
 
@@ -59,13 +59,17 @@ def interval_accepts(ts: TransitionSystem, nba: NBA, relevant: int, ets: Explici
     fd = acc[cd].astype(np.int64)
     src = np.repeat(np.arange(S, dtype=np.int64), np.diff(ets.indptr))
     dst = ets.targets.astype(np.int64)
-    keys, inv = np.unique(np.stack([lab[src], lab[src] & lab[dst], lab[src] | lab[dst]], axis=1), axis=0,
-                          return_inverse=True)
+    labels, lid = np.unique(lab, return_inverse=True)
+    lid = lid.ravel().astype(np.int64)
+    pairs, inv = np.unique(lid[src] * len(labels) + lid[dst], return_inverse=True)
     inv = inv.ravel()
+    ls, ld = labels[pairs // len(labels)], labels[pairs % len(labels)]
+    spans, span_of = np.unique(np.stack([ls & ld, ls | ld], axis=1), axis=0, return_inverse=True)
+    span_of = span_of.ravel()
     n2 = 2 * Q  # automaton with a flag: state 2q + f, f = an accepting state was passed in this step
 
     def letters(lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
-        """(keys, 2Q, 2Q) moves on one letter ℓ with lo ⊆ ℓ ⊆ hi."""
+        """(len(lo), 2Q, 2Q) moves on one letter ℓ with lo ⊆ ℓ ⊆ hi."""
         ok = ((cp[None, :] & ~hi[:, None]) == 0) & ((cn[None, :] & lo[:, None]) == 0)
         out = np.zeros((len(lo), n2, n2), dtype=np.float32)
         kk, cc = np.nonzero(ok)
@@ -73,28 +77,35 @@ def interval_accepts(ts: TransitionSystem, nba: NBA, relevant: int, ets: Explici
         out[kk, 2 * cq[cc] + 1, 2 * cd[cc] + 1] = 1.0
         return out
 
-    moves = np.zeros((len(keys), n2, n2), dtype=bool)
-    for lo_k in range(0, len(keys), CHUNK // 4):
-        part = keys[lo_k: lo_k + CHUNK // 4]
-        first = letters(part[:, 0], part[:, 0])
-        X = letters(part[:, 1], part[:, 2]) + np.eye(n2, dtype=np.float32)[None]
+    first = letters(labels, labels)  # the source label, read once
+    closure = np.zeros((len(spans), n2, n2), dtype=np.float32)  # any number of letters of the interval
+    for lo_k in range(0, len(spans), CHUNK // 4):
+        part = spans[lo_k: lo_k + CHUNK // 4]
+        X = letters(part[:, 0], part[:, 1]) + np.eye(n2, dtype=np.float32)[None]
         for _ in range(int(np.ceil(np.log2(n2)))):
             X = (np.matmul(X, X) > 0).astype(np.float32)
-        vis = part[:, 1] != part[:, 2]
-        moves[lo_k: lo_k + CHUNK // 4] = np.where(vis[:, None, None], np.matmul(first, X) > 0, first > 0)
+        closure[lo_k: lo_k + CHUNK // 4] = X
+    moves = np.zeros((len(pairs), n2, n2), dtype=bool)
+    vis = ls != ld
+    for lo_k in range(0, len(pairs), CHUNK // 4):
+        sl = slice(lo_k, lo_k + CHUNK // 4)
+        f1 = first[pairs[sl] // len(labels)]
+        moves[sl] = np.where(vis[sl, None, None], np.matmul(f1, closure[span_of[sl]]) > 0, f1 > 0)
     reach = moves[:, 0::2, 0::2] | moves[:, 0::2, 1::2]
     flag = moves[:, 0::2, 1::2]
-    rows, cols, frows, fcols = [], [], [], []
-    for lo in range(0, len(src), CHUNK):
-        sl = slice(lo, lo + CHUNK)
-        e, q, q2 = np.nonzero(reach[inv[sl]])
-        rows.append(src[sl][e] * Q + q)
-        cols.append(dst[sl][e] * Q + q2)
-        e, q, q2 = np.nonzero(flag[inv[sl]])
-        frows.append(src[sl][e] * Q + q)
-        fcols.append(dst[sl][e] * Q + q2)
-    rows, cols = np.concatenate(rows), np.concatenate(cols)
-    frows, fcols = np.concatenate(frows), np.concatenate(fcols)
+
+    def expand(m: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Product edges (rows, cols) of every TS transition from the per-pair NBA moves ``m``."""
+        p, q, q2 = np.nonzero(m)
+        ptr = np.concatenate([[0], np.cumsum(np.bincount(p, minlength=len(m)))])
+        count = ptr[inv + 1] - ptr[inv]
+        total = int(count.sum())
+        e = np.repeat(np.arange(len(inv), dtype=np.int64), count)
+        k = np.arange(total, dtype=np.int64) - np.repeat(np.cumsum(count) - count, count) + np.repeat(ptr[inv], count)
+        return src[e] * Q + q[k], dst[e] * Q + q2[k]
+
+    rows, cols = expand(reach)
+    frows, fcols = expand(flag)
     g = sp.csr_matrix((np.ones(len(rows), dtype=np.int8), (rows, cols)), shape=(S * Q, S * Q))
     order = breadth_first_order(g, nba.initial, directed=True, return_predecessors=False)
     seen = np.zeros(S * Q, dtype=bool)

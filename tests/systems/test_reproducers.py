@@ -6,15 +6,14 @@ corridor map; and an until-task on tiny that the executed-word semantics once ca
 from __future__ import annotations
 
 import pytest
-
 import yaml
 
 from mrodrake.planning.generate import generate_scenario
 from mrodrake.planning.plan import plan_scenario
 from mrodrake.run import run_mission
 from mrodrake.scenario import scenario_from_dict
-from tests.planning.conftest import SCENARIOS
 from tests.helpers.campaign import campaign_mission
+from tests.planning.conftest import SCENARIOS
 
 
 @pytest.mark.slow
