@@ -39,7 +39,7 @@ ENTITY_NAME = re.compile(r"^[A-Za-z][A-Za-z0-9]*$")
 #: Obstacle and macro names: identifiers.
 IDENTIFIER = re.compile(r"^[A-Za-z][A-Za-z0-9_]*$")
 
-#: Design range of the adaptive controllers (issue 16; the guarantee tests sample it).  Friction: α ≤ ᾱ per body
+#: Design range of the adaptive controllers (the guarantee tests sample it).  Friction: α ≤ ᾱ per body
 #: (Assumption 1's constant, ``Friction.alpha_bound``; ᾱ = ``control.alpha_max``, default twice the paper's
 #: α = 2 × 1.25, i.e. the paper's model with scale ≤ 2.5); the controllers start α̂ at the entity's bound
 #: (mrodrake.control.adaptive).  Mass: m̂_0 / DESIGN_MASS_RATIO ≤ m ≤ DESIGN_MASS_RATIO · m̂_0 per body (0.1 to

@@ -13,7 +13,7 @@ from scipy.optimize import minimize
 from mrodrake import packing
 from mrodrake.packing import SLACK, can_place, fits, pack, place, verify_packing
 
-# Proven optimal container ratios R/r for n = 2..10 equal circles (as given in issue 2).
+# Proven optimal container ratios R/r for n = 2..10 equal circles (Specht's packing tables).
 EQUAL_OPT = dict(zip(range(2, 11), [2.0, 2.1547, 2.4142, 2.7013, 3.0, 3.0, 3.3047, 3.6131, 3.8130]))
 NO_FIXED = (np.empty((0, 2)), np.empty(0))
 

@@ -27,7 +27,7 @@ c(x) = q^{-1/2} ∈ (0, 1], so χ̇ = J_H v_d = −c ∇φ still descends φ, an
 the term k_φ ∇φᵀ J_H v_d becomes −k_φ c ‖∇φ‖² ≤ 0 while the cross terms are cancelled by −k_φ J_Hᵀ∇φ as
 before.  ``v_max = inf`` recovers the paper's law exactly.
 
-Initial friction estimate at the design bound (our choice, issue 16; README deviations).  Assumption 1 leaves α
+Initial friction estimate at the design bound (our choice; README deviations).  Assumption 1 leaves α
 unknown; the controllers are designed for a known bound ᾱ per body (``alpha_max``, scenario
 ``control.alpha_max``), so an entity of n bodies (a robot: n = 1; an object and its team A: n = 1 + |A|) has
 α ≤ n ᾱ (α_A,j = Σ of the bodies' α).  The estimate starts there, α̂(0) = max(α̂_0, n ᾱ)

@@ -268,7 +268,7 @@ def test_docking_and_team_settling_over_the_design_range_many(bodies, masses, sc
 def test_docking_at_the_design_bound_settles():
     """A 2.5 kg robot with the friction at its bound (scale 2.5, α = 5 > k_v_local = 4) docking where the friction
     is anti-damping settles with α̂(0) = ᾱ = 5 (asserted by _local_property).  Where the paper's α̂(0) = 0 fails
-    is shown on the point-world law (tests/systems/test_transitions.py, issue 16)."""
+    is shown on the point-world law (tests/systems/test_transitions.py)."""
     _local_property(1, [2.5] * 4, [2.5] * 4, [0.5] * 4, -math.pi / 2)
 
 
@@ -302,7 +302,7 @@ def test_clear_goal_in_a_mission_world():
 
 
 def test_docking_through_a_gap_only_the_tight_ring_passes():
-    """Case II plan seed 1 (issue-16 randomization), step 45: r4 docks at o3's third slot, the only way round o1
+    """Case II plan seed 1 (randomized plants), step 45: r4 docks at o3's third slot, the only way round o1
     (0.107 m to the rim, 0.052 m to the docked r3) passes on the tight ring, whose chords keep exactly the required
     0.05 m; one of them came out 1.7e-14 m short and the mission stopped with "no collision-free path".  The path
     exists and keeps half the path clearance up to rounding."""
@@ -321,7 +321,7 @@ def test_docking_through_a_gap_only_the_tight_ring_passes():
 
 
 def test_exit_path_leaves_a_pocket_between_packed_entities():
-    """Case II plan seed 0 (issue-16 randomization), step 52: r3 starts its navigation to p2 after releasing o3, in
+    """Case II plan seed 0 (randomized plants), step 52: r3 starts its navigation to p2 after releasing o3, in
     the pocket between r2, o3 and r4 (0.127, 0.122 and 0.175 m from their disks grown by its 0.75 m).  The exit
     path ends at the nearest point 0.5 m clear of all of them, inside p1's approach disk, along legs that keep half
     the path clearance; it leaves through the pocket's open side (west), 0.8 m."""

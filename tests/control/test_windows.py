@@ -28,7 +28,7 @@ def _flow(task, x, seconds: float, dt: float = 0.25) -> np.ndarray:
 
 
 def test_a_dead_end_aisle_runs_on_a_window_map():
-    """Issue-13 campaign, gen_warehouse_n3_m1_k3_s1-p0-l0-d0, "navigate r2 p6->p4" where the point-world law
+    """Campaign mission gen_warehouse_n3_m1_k3_s1-p0-l0-d0, "navigate r2 p6->p4" where the point-world law
     starts: r1 and r3 parked in p6 merge shelf rows 3 and 4 into one hole, so aisle 3 west of them is a 31 m
     dead end (3.5 m wide for r2) whose walls are all that hole; r2 chattered there at 2 m/s on the spot with
     steps of 1e-4 s (RTF 0.1) until the time limit."""
@@ -55,7 +55,7 @@ def test_a_dead_end_aisle_runs_on_a_window_map():
 
 
 def test_a_goal_inside_a_narrow_aisle_is_not_resolved():
-    """Issue-13 campaign, gen_warehouse_n3_m1_k3_s3-p0-l0-d0, "transport o1 by r1+r2+r3 p2->p5": the team
+    """Campaign mission gen_warehouse_n3_m1_k3_s3-p0-l0-d0, "transport o1 by r1+r2+r3 p2->p5": the team
     (covering radius 1.93 m) has 1 m of aisle 2 between shelf rows 2 and 3; its goal 4.5 m inside maps where
     the whole map is flat along the aisle (the law crawled at 0.01 m/s for 1 000 s, then chattered)."""
     sc = generate_scenario(3, 1, 3, 3, map=WAREHOUSE)

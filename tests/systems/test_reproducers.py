@@ -1,7 +1,7 @@
-"""Whole missions on tasks that once stopped early: generated tasks with a false alarm of the label monitor
-(3, 1, 3, 11), no consistent order of concurrent actions (3, 2, 4, 15) and a numerically unstable primitive
-(4, 2, 4, 21), each several minutes on the office map (slow set, ``--runslow``); campaign missions on the
-corridor map; and an until-task on tiny that the executed-word semantics once called unsatisfiable."""
+"""Whole missions on tasks that stress execution: generated tasks whose label monitor, action order and
+integration are delicate ((3, 1, 3, 11), (3, 2, 4, 15), (4, 2, 4, 21), each several minutes on the office map:
+slow set, ``--runslow``); campaign missions on the corridor map; and an until-task on tiny whose satisfaction
+depends on which crossing interleavings the geometry allows."""
 
 from __future__ import annotations
 
@@ -56,7 +56,7 @@ def test_a_robot_parked_by_a_door_leaves_the_team_a_way_out(tmp_path):
 def test_an_until_task_whose_transport_crosses_far_apart_regions_runs():
     """tiny with ``!r1_p2 U (o1_p3 & r1_p1)``: r2 comes to p1, r1 and r2 carry o1 to p3 (25 m away, so every
     body leaves p1 before any enters p3) and r1 returns to p1 without entering p2.  The word where o1 enters p3
-    before r1 leaves p1 is geometrically impossible; the task is satisfiable and the mission keeps it."""
+    before r1 leaves p1 is geometrically impossible, so the task is satisfiable and the mission keeps it."""
     data = yaml.safe_load((SCENARIOS / "tiny.yaml").read_text())
     data["task"] = {"formula": "(!r1_p2 U (o1_p3 & r1_p1))", "propositions": {}}
     sc = scenario_from_dict(data)

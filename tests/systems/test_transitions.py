@@ -63,7 +63,7 @@ def _in_aisle(r, y0: float, y1: float) -> bool:
     ("transport", "o1", ["r1", "r2"], "p1", "p4", (14.0, 20.0)),
 ])
 def test_warehouse_aisles_are_travelled(kind, entity, team, src, dst, aisle):
-    """Issue 13, class 5: on the warehouse map (6 m aisles between 2 m shelf rows) a robot and a robots-object
+    """On the warehouse map (6 m aisles between 2 m shelf rows) a robot and a robots-object
     team travel along the aisles (the point-world map resolves the passage; no degenerate map)."""
     r = simulate_transition(WAREHOUSE, kind, entity, team=team, src_region=src, dst_region=dst, t_max=8000.0)
     check_guarantees(r)
@@ -103,26 +103,26 @@ def test_more_transports(obj, team, src, dst):
                                          t_max=8000.0))
 
 
-_ISSUE16_BODIES = {"o2": {"mass": 0.430, "scale": 2.338, "frequency": 0.784},
+_RANDOMIZED_BODIES = {"o2": {"mass": 0.430, "scale": 2.338, "frequency": 0.784},
                    "r1": {"mass": 1.455, "scale": 2.282, "frequency": 0.853},
                    "r3": {"mass": 0.561, "scale": 1.824, "frequency": 0.886}}
 
 
-def _issue16_transport(scenario):
+def _randomized_transport(scenario):
     others = [Disk("r2", (202.025, -129.012), 0.75), Disk("o1", (250.406, -282.977), 0.2)]
     return simulate_transition(scenario, "transport", "o2", team=["r1", "r3"], src_region="p2", dst_region="p3",
                                others=others, start=(100.029, -160.088), goal=(198.878, -130.547),
-                               true_params_override=_ISSUE16_BODIES, t_max=60.0, accuracy=1e-3)
+                               true_params_override=_RANDOMIZED_BODIES, t_max=60.0, accuracy=1e-3)
 
 
-def test_randomized_transport_stays_damped_issue16():
-    """Issue 16 regression, the failing primitive of a randomized case-I mission (run 0, step 21):
+def test_randomized_transport_stays_damped():
+    """A transport of a randomized case-I mission (step 21) that diverged with the paper's initial estimate:
     o2 (0.43 kg, scale 2.34) carried by r1 (1.46 kg, 2.28) and r3 (0.56 kg, 1.82) from p2 to p3, α_A = 12.9,
     mission integration settings (RK3, accuracy 1e-3).  With the paper's α̂(0) = 0 the damping k_v + 3/2 α̂ stays
     near 1.5 while the anti-damping part of f reaches 4.7: e_v grows like exp(1.2 t) and the team leaves its
     free space within the first minute (asserted below).  With α̂(0) at the design bound (3 bodies x 5) the
     velocity loop is contracting and speeds stay below the 3 v_max the bound implies (control/adaptive.py)."""
-    r = _issue16_transport(CASE1)
+    r = _randomized_transport(CASE1)
     assert "failed" not in r.status, r.status
     assert r.t_final == pytest.approx(60.0)
     assert r.log["alpha_hat"].iloc[0] == pytest.approx(3 * CASE1.control.alpha_max)
@@ -130,7 +130,7 @@ def test_randomized_transport_stays_damped_issue16():
     assert speed.max() < 3.0 * r.task.v_max, f"max speed {speed.max():.2f} m/s"
     assert np.all(np.isfinite(r.log.to_numpy()))
 
-    paper = _issue16_transport(dataclasses.replace(CASE1, control=dataclasses.replace(CASE1.control, alpha_max=0.0)))
+    paper = _randomized_transport(dataclasses.replace(CASE1, control=dataclasses.replace(CASE1.control, alpha_max=0.0)))
     fast = np.hypot(paper.log["vx"], paper.log["vy"]).max()
     assert "failed" in paper.status or fast > 3.0 * paper.task.v_max, (paper.status, fast)
 
@@ -141,7 +141,7 @@ transitions = st.sampled_from([("navigate", "r1", ()), ("navigate", "r2", ()),
 
 # The design range of the controllers (mrodrake.scenario.DESIGN_MASS_RATIO, DESIGN_ALPHA_MAX) for every body:
 # masses m̂_0/5 .. 5 m̂_0 = 0.1 .. 2.5 kg, the paper's friction with scale 0 .. 2.5 (α = 2 scale <= 5) and
-# frequency 0.2 .. 1.0 (issue 16's randomisation: masses x U[0.5, 2], scale 1.25 x U[0, 2], frequency U[0.2, 1]).
+# frequency 0.2 .. 1.0 (the campaigns' randomisation: masses x U[0.5, 2], scale 1.25 x U[0, 2], frequency U[0.2, 1]).
 _LO, _HI = CASE1.control.m_hat0 / DESIGN_MASS_RATIO, CASE1.control.m_hat0 * DESIGN_MASS_RATIO
 masses = st.lists(st.floats(_LO, _HI), min_size=4, max_size=4)
 scales = st.lists(st.floats(0.0, CASE1.control.alpha_max / 2.0), min_size=4, max_size=4)
