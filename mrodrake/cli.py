@@ -1,4 +1,4 @@
-"""The ``mrodrake`` command line: validate, ts, ltl2nba, plan, run, campaign, bench.
+"""The ``mrodrake`` command line: validate, ts, draw, ltl2nba, plan, run, campaign, bench.
 
 User errors print ``error: <one line>`` (plus a caret line for formula errors) and exit with status 2
 (status 3 when a planner ran out of budget without deciding satisfiability); Ctrl-C exits with status 130
@@ -65,6 +65,20 @@ def _cmd_ts(args: argparse.Namespace) -> int:
     print(f"states:       {ets.num_states}  (reachable from the initial state)")
     print(f"transitions:  {ets.num_transitions}  (including {ets.num_states} self-loops)")
     print(f"build time:   {ets.build_seconds:.3f} s")
+    return 0
+
+
+def _cmd_draw(args: argparse.Namespace) -> int:
+    from pathlib import Path
+
+    from mrodrake.scenario import load_scenario
+    from mrodrake.viz.mapview import write_map
+
+    out = Path(args.output) if args.output else Path(Path(args.file).stem + ".png")
+    if out.suffix.lower() not in (".png", ".html"):
+        raise UserError(f"-o: expected a .png or .html file name, got '{out}'")
+    path = write_map(load_scenario(args.file), out)
+    print(f"wrote {path}")
     return 0
 
 
@@ -141,6 +155,15 @@ def build_parser() -> argparse.ArgumentParser:
                    help="refuse to build when the estimated or counted transitions exceed N "
                    f"(default {MAX_TRANSITIONS}, about {MAX_TRANSITIONS * _BYTES_PER_TRANSITION / 1e9:.0f} GB)")
     p.set_defaults(func=_cmd_ts)
+
+    p = sub.add_parser("draw", help="draw a scenario's or map's map",
+                       description="Draw the workspace, obstacles, regions (names, radii), the initial layout "
+                       "(P_s) and, for each robot radius and each object's smallest strong-enough team, the "
+                       "passages it cannot use (walls and obstacles grown by its radius plus the control margin).")
+    p.add_argument("file", metavar="FILE", help="a scenario or map file (YAML)")
+    p.add_argument("-o", "--output", metavar="OUT", help="map.png (matplotlib) or map.html (self-contained "
+                   "page with an inline SVG); default: FILE's stem + .png in the current directory")
+    p.set_defaults(func=_cmd_draw)
 
     from mrodrake import bench, campaign
     from mrodrake import run as run_cli
