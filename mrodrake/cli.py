@@ -1,4 +1,4 @@
-"""The ``mrodrake`` command line: validate, ts, ltl2nba, plan, run, campaign, bench.
+"""The ``mrodrake`` command line: validate, ts, draw, ltl2nba, plan, run, campaign, bench.
 
 User errors print ``error: <one line>`` (plus a caret line for formula errors) and exit with status 2
 (status 3 when a planner ran out of budget without deciding satisfiability); Ctrl-C exits with status 130
@@ -31,13 +31,31 @@ def _cmd_validate(args: argparse.Namespace) -> int:
     return 0
 
 
+#: Default ``mrodrake ts --max-transitions``: about 3 GB of memory while the TS is built.
+MAX_TRANSITIONS = 10_000_000
+#: Peak memory per transition of :meth:`~mrodrake.ts.TransitionSystem.build` (bytes, measured).
+_BYTES_PER_TRANSITION = 300
+
+
 def _cmd_ts(args: argparse.Namespace) -> int:
     from mrodrake.scenario import load_scenario
     from mrodrake.ts import TransitionSystem
 
     scenario = load_scenario(args.scenario)
     ts = TransitionSystem(scenario)
-    ets = ts.build(progress=_progress_callback("building TS") if not args.json else None)
+    limit = args.max_transitions
+    est = ts.estimate_size()
+    if est.transitions > limit:
+        gb = est.transitions * _BYTES_PER_TRANSITION / 1e9
+        raise UserError(f"{args.scenario}: the transition system would have about {est.transitions:.2g} transitions "
+                        f"({est.states:.2g} states, about {gb:.2g} GB to build), more than --max-transitions "
+                        f"{limit}; raise --max-transitions to build it anyway")
+    try:
+        ets = ts.build(progress=_progress_callback("building TS") if not args.json else None,
+                       max_transitions=limit)
+    except RuntimeError as e:
+        raise UserError(f"{args.scenario}: {e} (estimated {est.transitions:.2g}); raise --max-transitions "
+                        "to build it anyway") from None
     if args.json:
         _write_ts_json(ets, sys.stdout)
         return 0
@@ -47,6 +65,20 @@ def _cmd_ts(args: argparse.Namespace) -> int:
     print(f"states:       {ets.num_states}  (reachable from the initial state)")
     print(f"transitions:  {ets.num_transitions}  (including {ets.num_states} self-loops)")
     print(f"build time:   {ets.build_seconds:.3f} s")
+    return 0
+
+
+def _cmd_draw(args: argparse.Namespace) -> int:
+    from pathlib import Path
+
+    from mrodrake.scenario import load_scenario
+    from mrodrake.viz.mapview import write_map
+
+    out = Path(args.output) if args.output else Path(Path(args.file).stem + ".png")
+    if out.suffix.lower() not in (".png", ".html"):
+        raise UserError(f"-o: expected a .png or .html file name, got '{out}'")
+    path = write_map(load_scenario(args.file), out)
+    print(f"wrote {path}")
     return 0
 
 
@@ -70,6 +102,16 @@ def _write_ts_json(ets, out) -> None:
             out.write(("  " if first else " ,") + json.dumps(rec) + "\n")
             first = False
     out.write(" ]}\n")
+
+
+def _positive_int(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        value = 0
+    if value <= 0:
+        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}")
+    return value
 
 
 def _progress_callback(desc: str):
@@ -109,7 +151,19 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("scenario", metavar="SCENARIO")
     p.add_argument("--json", action="store_true", help="print states (with labels) and transitions "
                    "(with costs and actions) as JSON")
+    p.add_argument("--max-transitions", type=_positive_int, default=MAX_TRANSITIONS, metavar="N",
+                   help="refuse to build when the estimated or counted transitions exceed N "
+                   f"(default {MAX_TRANSITIONS}, about {MAX_TRANSITIONS * _BYTES_PER_TRANSITION / 1e9:.0f} GB)")
     p.set_defaults(func=_cmd_ts)
+
+    p = sub.add_parser("draw", help="draw a scenario's or map's map",
+                       description="Draw the workspace, obstacles, regions (names, radii), the initial layout "
+                       "(P_s) and, for each robot radius and each object's smallest strong-enough team, the "
+                       "passages it cannot use (walls and obstacles grown by its radius plus the control margin).")
+    p.add_argument("file", metavar="FILE", help="a scenario or map file (YAML)")
+    p.add_argument("-o", "--output", metavar="OUT", help="map.png (matplotlib) or map.html (self-contained "
+                   "page with an inline SVG); default: FILE's stem + .png in the current directory")
+    p.set_defaults(func=_cmd_draw)
 
     from mrodrake import bench, campaign
     from mrodrake import run as run_cli

@@ -175,6 +175,11 @@ class RegionGraph:
             self._base[r] = hit
         return hit
 
+    def clearance_space(self, radius: float):
+        """Where the centre of an entity of ``radius`` may be, regions ignored: the workspace shrunk and the
+        obstacles grown by the radius plus the margin."""
+        return self._geometry(self._key(radius))[0]
+
     def travel_space(self, radius: float, k: int, k2: int):
         """The component of the travel space of a trip k → k' for ``radius`` that meets the seats of both
         (None: they are not connected)."""

@@ -88,6 +88,16 @@ class Transport:
 Action = Navigate | Grasp | Release | Transport
 
 
+@dataclass(frozen=True)
+class SizeEstimate:
+    """Estimated size of the explicit TS (:meth:`TransitionSystem.estimate_size`)."""
+
+    states: float
+    transitions: float
+    samples: int
+    seconds: float
+
+
 
 def reachable(C: np.ndarray, k: int) -> set[int]:
     """Regions reachable from region k along the connection matrix C (k included)."""
@@ -204,6 +214,17 @@ class TransitionSystem:
         """Regions an entity of ``radius`` can ever get to from region k (travelling region to region)."""
         return sorted(reachable(self.connections(radius), k))
 
+    def smallest_team(self, j: int) -> tuple[tuple[int, ...], float] | None:
+        """The team powerful enough to carry object j with the smallest covering radius, and that radius
+        (None: no team is); teams of up to 12 robots are enumerated, of up to 4 beyond 12 robots."""
+        largest = self.N if self.N <= 12 else 4
+        teams = [t for n in range(1, largest + 1) for t in itertools.combinations(range(self.N), n)
+                 if self.team_power_ok(t, j)]
+        if not teams:
+            return None
+        best = min(teams, key=lambda t: (self.covering_radius(j, t), len(t)))
+        return best, self.covering_radius(j, best)
+
     def smallest_team_radius(self, j: int) -> float | None:
         """A lower bound on the covering radius of every team powerful enough to carry object j (None when
         no team is): exact over all teams up to 12 robots; beyond, the smallest c such that the robots whose
@@ -248,6 +269,61 @@ class TransitionSystem:
                 out.append(f"object {self.object_names[j]} can never be carried to {', '.join(miss)} from "
                            f"{names[k]}: {_NO_PASSAGE} for its smallest team (covering radius {r:.2f} m)")
         return out
+
+    def estimate_size(self, samples: int = 300, per_state: int = 24, seed: int = 0) -> SizeEstimate:
+        """Estimate the explicit TS's states and transitions without building it (Monte Carlo, seeded).
+
+        Every entity stays in the regions it can reach from its start (objects: for their smallest team),
+        and a robot is free in one of its regions or grasps an object there.  States are drawn from that
+        product space; a drawn valid state counts with the space's size and with its candidate count
+        (:meth:`candidate_count`) times the valid fraction of ``per_state`` drawn candidates.
+        Reachability is not checked, so the estimate tends to exceed :meth:`build`'s counts."""
+        t0 = time.perf_counter()
+        rng = np.random.default_rng(seed)
+        N, M = self.N, self.M
+        robot_dom = [self.reach(self.robot_radius[i], self.initial[i]) for i in range(N)]
+        obj_dom = []
+        for j in range(M):
+            best = self.smallest_team(j)
+            k = self.initial[N + j]
+            obj_dom.append(self.reach(best[1], k) if best is not None else [k])
+        obj_weight = math.prod(len(d) for d in obj_dom)
+        states = transitions = 0.0
+        for _ in range(samples):
+            O = [d[rng.integers(len(d))] for d in obj_dom]
+            R, G, weight = [], [], float(obj_weight)
+            for i in range(N):
+                grasp = [j for j in range(M) if O[j] in robot_dom[i]]
+                n = len(robot_dom[i]) + len(grasp)
+                weight *= n
+                c = int(rng.integers(n))
+                if c < len(robot_dom[i]):
+                    R.append(robot_dom[i][c])
+                    G.append(-1)
+                else:
+                    R.append(O[grasp[c - len(robot_dom[i])]])
+                    G.append(grasp[c - len(robot_dom[i])])
+            s = self.make_state(R, O, G)
+            if not self.is_valid(s):
+                continue
+            states += weight
+            transitions += weight * self._degree(s, per_state, rng)
+        return SizeEstimate(states / samples, transitions / samples, samples, time.perf_counter() - t0)
+
+    def _degree(self, s: State, draws: int, rng: np.random.Generator) -> float:
+        """Estimated number of transitions out of s: its candidates times the valid fraction of ``draws``."""
+        rules = [(dests, opts, math.prod(len(p) for p in opts)) for dests, opts in self.options(s)]
+        counts = np.array([c for _, _, c in rules], dtype=float)
+        total = float(counts.sum())
+        if total <= draws:
+            return float(sum(1 for _ in self.successor_states(s)))
+        ok = 0
+        for r in rng.choice(len(rules), size=draws, p=counts / total):
+            dests, opts, _ = rules[r]
+            regions, grasps = zip(*(p[rng.integers(len(p))] for p in opts))
+            t = tuple(regions) + tuple(dests) + tuple(grasps)
+            ok += self.is_valid(t) and self.step_fits(s, t)
+        return total * ok / draws
 
     # ------------------------------------------------------------------ validity
     def region_fits(self, k: int, radii: Sequence[float]) -> bool:
@@ -562,8 +638,9 @@ class TransitionSystem:
             digits.append(d - 1)
         return tuple(digits)
 
-    def build(self, max_states: int | None = None, progress=None) -> ExplicitTS:
-        """Reachable TS from the initial state as a CSR graph (see :class:`ExplicitTS`).
+    def build(self, max_states: int | None = None, progress=None, max_transitions: int | None = None) -> ExplicitTS:
+        """Reachable TS from the initial state as a CSR graph (see :class:`ExplicitTS`); RuntimeError beyond
+        ``max_states`` states or ``max_transitions`` valid candidate transitions.
 
         Breadth-first over integer state codes (:meth:`encode`): the successor codes of a state are the
         sums of per-robot code deltas over the product of its option lists (:meth:`option_keys`), so no
@@ -579,7 +656,7 @@ class TransitionSystem:
         targets = array.array("i")
         decode, valid = self.decode, self._regions_fit  # candidates are co-located by construction
         deltas: dict[tuple, list[int]] = {}
-        u = 0
+        u = n_valid = 0
         while u < len(states):
             s = states[u]
             for dests, keys in self.option_keys(s):
@@ -604,6 +681,9 @@ class TransitionSystem:
                                 idx = -1
                             index[cand[k]] = found[k] = idx
                 targets.extend(found)
+                n_valid += len(found) - found.count(-1)
+            if max_transitions is not None and n_valid > max_transitions:
+                raise RuntimeError(f"more than {max_transitions} transitions")
             ends.append(len(targets))
             u += 1
             if progress is not None and u % 1000 == 0:

@@ -357,3 +357,52 @@ def test_cli_ts_json_matches_build():
         assert ts.check_transition(s, t) is None
         assert tr["cost"] == pytest.approx(ts.cost(s, t), abs=1e-6)
         assert tr["actions"] == [ts.format_action(a, "names") for a in ts.actions(s, t)]
+
+
+@pytest.mark.parametrize("name", ["tiny", "case_study_1", "case_study_2"])
+def test_estimate_is_close_to_the_built_size(name):
+    ts = TransitionSystem(load_scenario(ROOT / "scenarios" / f"{name}.yaml"))
+    est = ts.estimate_size()
+    ets = ts.build()
+    assert est.seconds < 2.0
+    assert 0.8 < est.states / ets.num_states < 1.5
+    assert 0.8 < est.transitions / ets.num_transitions < 1.5
+
+
+def test_build_stops_beyond_max_transitions(case1):
+    with pytest.raises(RuntimeError, match="more than 1000 transitions"):
+        case1.build(max_transitions=1000)
+
+
+def _run_ts(path, *extra):
+    import subprocess
+    import sys
+    import time
+
+    start = time.perf_counter()
+    res = subprocess.run([sys.executable, "-m", "mrodrake", "ts", str(path), *extra], capture_output=True, text=True,
+                         timeout=120, cwd=ROOT)
+    return res, time.perf_counter() - start
+
+
+def test_cli_ts_refuses_a_big_transition_system_quickly(tmp_path):
+    import yaml
+
+    from mrodrake.planning.generate import generate_scenario_data
+
+    path = tmp_path / "yard.yaml"
+    path.write_text(yaml.safe_dump(generate_scenario_data(6, 3, 5, seed=0), sort_keys=False), encoding="utf-8")
+    res, seconds = _run_ts(path)
+    assert res.returncode == 2, res.stderr
+    assert seconds < 5.0
+    lines = res.stderr.strip().splitlines()
+    assert len(lines) == 1 and "Traceback" not in res.stderr
+    assert "--max-transitions" in lines[0] and "transitions" in lines[0]
+    assert "e+" in lines[0]  # the estimate, e.g. "about 1.8e+11 transitions"
+
+
+def test_cli_ts_max_transitions_lowers_the_limit():
+    res, _ = _run_ts(ROOT / "scenarios" / "tiny.yaml", "--max-transitions", "100")
+    assert res.returncode == 2 and "more than --max-transitions 100" in res.stderr
+    res, _ = _run_ts(ROOT / "scenarios" / "tiny.yaml", "--max-transitions", "1000")
+    assert res.returncode == 0 and "transitions:  438" in res.stdout

@@ -24,12 +24,9 @@ from mrodrake.viz.replay import (
     view_bounds,
     write_replay,
 )
+from tests.helpers.browser import CHROMIUM, CHROMIUM_FLAGS, require_chromium
 
 SCENARIO = Path(__file__).resolve().parents[2] / "scenarios" / "case_study_1.yaml"
-CHROMIUM = Path("/usr/bin/chromium")
-# WebGL in headless Chromium without a GPU: ANGLE on SwiftShader (software Vulkan).
-CHROMIUM_FLAGS = ["--headless", "--no-sandbox", "--use-angle=swiftshader", "--enable-unsafe-swiftshader",
-                  "--disable-background-networking", "--mute-audio"]
 DURATION = 200.0
 FPS = 30
 # Meshcat's viewer (JavaScript, inline) is 2.23 MB on pydrake 1.51; our scene and 100 s of animation for
@@ -226,8 +223,7 @@ def _seek(page, t_replay: float) -> None:
 
 
 def test_replay_plays_in_headless_chromium(replay, scenario, mission, tmp_path):
-    if not CHROMIUM.exists():
-        pytest.skip("/usr/bin/chromium is absent (install Debian's `chromium` package to run the browser test)")
+    require_chromium()
     from playwright.sync_api import sync_playwright
 
     path, _ = replay
