@@ -20,11 +20,13 @@ from dataclasses import field as dc_field
 from pathlib import Path
 from typing import Annotated, Any, Literal
 
+import numpy as np
 import yaml
 from pydantic import ConfigDict, Field, TypeAdapter, ValidationError
 from pydantic.dataclasses import dataclass
 
 from mrodrake.errors import UserError
+from mrodrake.packing import place
 
 _CFG = ConfigDict(extra="forbid")
 
@@ -537,4 +539,21 @@ def design_range_warnings(s: Scenario, where: Where | None = None) -> list[str]:
                            f"({b.friction.model} "
                            f"model, scale {b.friction.scale:g}) outside the design range α ≤ {c.alpha_max:g} per body "
                            f"of the controllers (control.alpha_max)")
+    return out
+
+
+def initial_layout(scenario: Scenario) -> dict[str, np.ndarray]:
+    """A position for every robot and object in its initial region, from P_s (:func:`mrodrake.packing.place`
+    with the planning seed)."""
+    out = {}
+    for reg in scenario.regions:
+        ents = [e for e in list(scenario.robots) + list(scenario.objects) if e.initial_region == reg.name]
+        if not ents:
+            continue
+        centres = place(reg.radius, np.zeros((0, 2)), [], [e.radius for e in ents],
+                        seed=scenario.planning.seed, margin=scenario.layout.spacing)
+        if centres is None:
+            raise UserError(f"regions: the entities starting in region '{reg.name}' do not fit in it")
+        for e, c in zip(ents, centres):
+            out[e.name] = np.asarray(reg.center, dtype=float) + c
     return out

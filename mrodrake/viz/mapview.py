@@ -25,12 +25,11 @@ from matplotlib.patches import Circle, PathPatch
 from matplotlib.patches import Polygon as MplPolygon
 
 from mrodrake.errors import UserError
-from mrodrake.packing import place
-from mrodrake.scenario import Scenario
+from mrodrake.scenario import Scenario, initial_layout
 from mrodrake.ts import TransitionSystem
 from mrodrake.viz.figures import _polygon_path
 
-__all__ = ["Traveller", "travellers", "initial_layout", "figure_map", "write_map"]
+__all__ = ["Traveller", "travellers", "figure_map", "write_map"]
 
 _ROBOT, _OBJECT = "#1f5fbf", "#d62728"
 _OPEN, _CLOSED, _SHADE = "#2a9d3a", "#d62728", "#d0d0d0"
@@ -87,20 +86,6 @@ def _traveller(ts, label, radius, starts, team=()) -> Traveller:
                      {n: m for n, m in miss.items() if m})
 
 
-def initial_layout(scenario: Scenario) -> dict[str, np.ndarray]:
-    """A position for every robot and object in its initial region, from P_s (:func:`mrodrake.packing.place`)."""
-    out = {}
-    for reg in scenario.regions:
-        ents = [e for e in list(scenario.robots) + list(scenario.objects) if e.initial_region == reg.name]
-        if not ents:
-            continue
-        centres = place(reg.radius, np.zeros((0, 2)), [], [e.radius for e in ents],
-                        seed=scenario.planning.seed, margin=scenario.layout.spacing)
-        if centres is None:
-            raise UserError(f"regions: the entities starting in region '{reg.name}' do not fit in it")
-        for e, c in zip(ents, centres):
-            out[e.name] = np.asarray(reg.center, dtype=float) + c
-    return out
 
 
 def _frame(ax, scenario: Scenario) -> None:

@@ -31,6 +31,7 @@ import shapely
 from shapely.geometry import MultiPolygon, Polygon, box
 
 from mrodrake.errors import UserError
+from mrodrake.scenario import initial_layout
 
 __all__ = [
     "ROOT", "write_replay", "scene_only", "choose_speedup", "view_bounds", "entity_colors",
@@ -369,22 +370,6 @@ def _draw_entity(meshcat, lay: _Layout, name: str, radius: float, rgb) -> None:
         _set_flat_disk(meshcat, f"{base}/halo", (0.0, 0.0), lay.halo_r, _Z_HALO, rgb, 0.35)
 
 
-def _initial_positions(scenario) -> dict[str, np.ndarray]:
-    """A position for every robot and object inside its initial region, from P_s (``packing.place``)."""
-    from mrodrake.packing import place
-
-    out = {}
-    for reg in scenario.regions:
-        ents = [e for e in list(scenario.robots) + list(scenario.objects) if e.initial_region == reg.name]
-        if not ents:
-            continue
-        centres = place(reg.radius, np.zeros((0, 2)), [], [e.radius for e in ents],
-                        seed=scenario.planning.seed, margin=scenario.layout.spacing)
-        if centres is None:
-            raise UserError(f"regions: the initial entities of region '{reg.name}' do not fit in it")
-        for e, c in zip(ents, centres):
-            out[e.name] = np.asarray(reg.center, dtype=float) + c
-    return out
 
 
 def scene_only(scenario, meshcat) -> None:
@@ -401,7 +386,7 @@ def scene_only(scenario, meshcat) -> None:
     _draw_static(scenario, meshcat, lay, title=scenario.name, t_range=None)
     colors = entity_colors(scenario)
     radii = {e.name: e.radius for e in list(scenario.robots) + list(scenario.objects)}
-    for name, p in _initial_positions(scenario).items():
+    for name, p in initial_layout(scenario).items():
         _draw_entity(meshcat, lay, name, radii[name], colors[name])
         meshcat.SetTransform(f"{ROOT}/entities/{name}", RigidTransform([p[0], p[1], 0.0]))
 
@@ -650,7 +635,7 @@ def synthetic_mission(scenario, duration: float = 200.0, *, dt: float = 0.1, spe
     ``(trajectory, grasps)`` in the format of :func:`write_replay`, sampled every ``dt`` over [0, duration].
     """
     rng = np.random.default_rng(seed)
-    pos = _initial_positions(scenario)
+    pos = initial_layout(scenario)
     radii = {e.name: e.radius for e in list(scenario.robots) + list(scenario.objects)}
     centres = {g.name: np.asarray(g.center, dtype=float) for g in scenario.regions}
     region_radius = {g.name: g.radius for g in scenario.regions}
