@@ -311,45 +311,70 @@ class TransitionSystem:
         return self.region_fits(k, radii)
 
     def steps_fit(self, A: np.ndarray, B: np.ndarray) -> np.ndarray:
-        """:meth:`step_fits` of the steps A[r] → B[r] (rows of state arrays; B may be one state), vectorised:
-        per region that loses and gains entities, the union's units are encoded as one integer (free robots,
-        then per object its presence and its team), and P_s is decided once per distinct code."""
+        """:meth:`step_fits` of the steps A[r] → B[r] (rows of state arrays; B may be one state), vectorised
+        (:meth:`steps_fit_index`)."""
+        A = np.asarray(A)
+        B = np.asarray(B)
+        if B.ndim == 1:
+            states = np.concatenate([A.reshape(-1, 2 * self.N + self.M), B[None, :].astype(A.dtype)])
+            dst = np.full(len(A), len(A), dtype=np.int64)
+        else:
+            states = np.concatenate([A, B.astype(A.dtype)])
+            dst = np.arange(len(A), 2 * len(A), dtype=np.int64)
+        return self.steps_fit_index(states, np.arange(len(A), dtype=np.int64), dst)
+
+    def steps_fit_index(self, states: np.ndarray, src: np.ndarray, dst: np.ndarray) -> np.ndarray:
+        """:meth:`step_fits` of the steps states[src[r]] → states[dst[r]].  Per state and region, the entities
+        there form a bit mask; a region loses and gains entities where the two masks differ both ways, and
+        the union of the masks (free robots under the grasps considered, every object with its team) is
+        decided once per distinct (grasps, union)."""
         N, M, K = self.N, self.M, self.K
         n = N + M
-        A = np.asarray(A, dtype=np.int64)
-        B = np.broadcast_to(np.asarray(B, dtype=np.int64), A.shape)
-        ok = np.ones(len(A), dtype=bool)
-        pow_n = 1 << np.arange(N, dtype=np.int64)
-        moved = A[:, :n] != B[:, :n]
-        dep = [(moved & (A[:, :n] == k)).any(axis=1) for k in range(K)]
-        arr = [(moved & (B[:, :n] == k)).any(axis=1) for k in range(K)]
+        S = np.asarray(states)
+        src, dst = np.asarray(src, dtype=np.int64), np.asarray(dst, dtype=np.int64)
+        ok = np.ones(len(src), dtype=bool)
+        if len(src) == 0:
+            return ok
+        pow_e = np.int64(1) << np.arange(n, dtype=np.int64)
+        here = np.stack([(S[:, :n] == k) @ pow_e for k in range(K)])  # (K, states): entities in region k
+        grasps, gid = np.unique(S[:, n:], axis=0, return_inverse=True)
+        gid = gid.ravel().astype(np.int64)
+        objects = int(pow_e[N:].sum()) if M else 0
+        free = ((S[:, n:] < 0) @ pow_e[:N]) | objects  # per state: entities counted alone under its grasps
+        dense = len(grasps) << n <= 1 << 22
         for k in range(K):
-            rows = np.flatnonzero(dep[k] & arr[k])
+            pa, pb = here[k][src], here[k][dst]
+            rows = np.flatnonzero(((pa & ~pb) != 0) & ((pb & ~pa) != 0))
             if len(rows) == 0:
                 continue
-            a, b = A[rows], B[rows]
-            here = (a[:, :n] == k) | (b[:, :n] == k)
-            for G in (a[:, n:], b[:, n:]):
-                code = (here[:, :N] & (G < 0)).astype(np.int64) @ pow_n
-                shift = N
-                for j in range(M):
-                    team = (G == j).astype(np.int64) @ pow_n
-                    code |= (here[:, N + j].astype(np.int64) << shift) | (team << (shift + 1))
-                    shift += N + 1
-                codes, inv = np.unique(code, return_inverse=True)
-                fits = np.array([self._code_fits(k, int(c)) for c in codes], dtype=bool)
-                ok[rows[~fits[inv.ravel()]]] = False
+            union = pa[rows] | pb[rows]
+            for side in (src, dst):
+                st = side[rows]
+                code = (gid[st] << n) | (union & free[st])
+                if dense:
+                    seen = np.zeros(len(grasps) << n, dtype=bool)
+                    seen[code] = True
+                    table = np.ones(len(grasps) << n, dtype=bool)
+                    for c in np.flatnonzero(seen):
+                        table[c] = self._mask_fits(k, grasps[c >> n], int(c) & ((1 << n) - 1))
+                    fits = table[code]
+                else:
+                    codes, inv = np.unique(code, return_inverse=True)
+                    table = np.array([self._mask_fits(k, grasps[c >> n], int(c) & ((1 << n) - 1)) for c in codes],
+                                     dtype=bool)
+                    fits = table[inv.ravel()]
+                ok[rows[~fits]] = False
         return ok
 
-    def _code_fits(self, k: int, code: int) -> bool:
+    def _mask_fits(self, k: int, G: np.ndarray, mask: int) -> bool:
+        """P_s for region k of the entities in ``mask`` (bit i: free robot i; bit N + j: object j with its
+        team under the grasps G)."""
         N = self.N
-        radii = [self.robot_radius[i] for i in range(N) if code >> i & 1]
-        shift = N
+        radii = [self.robot_radius[i] for i in range(N) if mask >> i & 1]
         for j in range(self.M):
-            if code >> shift & 1:
-                team = tuple(i for i in range(N) if code >> (shift + 1 + i) & 1)
+            if mask >> (N + j) & 1:
+                team = tuple(i for i in range(N) if G[i] == j)
                 radii.append(self.covering_radius(j, team) if team else self.object_radius[j])
-            shift += N + 1
         return self.region_fits(k, radii)
 
     # ------------------------------------------------------------------ labels and cost
@@ -594,7 +619,7 @@ class TransitionSystem:
         keep = tg >= 0
         src_all = np.repeat(np.arange(len(states), dtype=np.int64), np.diff(np.array(ends, dtype=np.int64)))
         cand = np.flatnonzero(keep)
-        keep[cand] = self.steps_fit(arr[src_all[cand]], arr[tg[cand]])
+        keep[cand] = self.steps_fit_index(arr, src_all[cand], tg[cand])
         src, tg = src_all[keep], tg[keep].astype(np.int64)
         # steps that do not fit may have been the only way to some states: keep what the initial state reaches
         g = csr_matrix((np.ones(len(src), dtype=np.int8), (src, tg)), shape=(len(states), len(states)))

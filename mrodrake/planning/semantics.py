@@ -246,10 +246,15 @@ class ExecutedWords:
         self._succ_bits: dict[int, list[int]] = {}
         self._delta: dict[tuple[int, int], int] = {}
         self._lattice: dict[tuple, tuple[frozenset, int]] = {}
+        self._cross_ids: dict[tuple, int] = {}
+        self._lattices: list[list[tuple[int, int, int, tuple[int, ...]]]] = []
         self._step: dict[tuple, list[dict[int, tuple[int, ...]]]] = {}
         self._matrix: dict[tuple, np.ndarray] = {}
         self._label_matrix: dict[int, np.ndarray] = {}
         self._some: dict[tuple, tuple[np.ndarray, np.ndarray]] = {}
+        self._cross: dict[Action, tuple[Crossing, ...]] = {}
+        self._keys: dict[tuple[State, State], tuple[int, tuple, tuple[Action, ...]]] = {}
+        self._rows: dict[tuple, np.ndarray] = {}
         self._acc = sum(1 << f for f in nba.accepting)
 
     # ------------------------------------------------------------------------------------ NBA on subsets
@@ -274,34 +279,69 @@ class ExecutedWords:
         return out
 
     # ------------------------------------------------------------------------------------ one step
+    def crossings(self, a: Action) -> tuple[Crossing, ...]:
+        """:func:`crossings` of action ``a`` for this AP_φ (cached)."""
+        c = self._cross.get(a)
+        if c is None:
+            c = self._cross[a] = crossings(self.ts, self.relevant, a)
+        return c
+
     def key(self, s: State, t: State, actions: Sequence[Action] | None = None) -> tuple[int, tuple, list[Action]]:
         """(projected source label, crossing signature of the visible actions, those actions) of s → t."""
+        if actions is None:
+            hit = self._keys.get((s, t))
+            if hit is not None:
+                return hit[0], hit[1], list(hit[2])
         acts = region_changing(self.ts.actions(s, t) if actions is None else actions)
-        vis = [(a, c) for a in acts if (c := crossings(self.ts, self.relevant, a))]
-        return self.ts.label_mask(s) & self.relevant, tuple(c for _, c in vis), [a for a, _ in vis]
+        cross = self.crossings
+        vis = [(a, c) for a in acts if (c := cross(a))]
+        out = self.ts.label_mask(s) & self.relevant, tuple(c for _, c in vis), [a for a, _ in vis]
+        if actions is None:
+            self._keys[(s, t)] = (out[0], out[1], tuple(out[2]))
+        return out
+
+    def _cross_id(self, cross: tuple) -> int:
+        """A small integer naming one action's crossings, with its lattice precomputed: per reachable downset D
+        of crossing events (in increasing order) the bits its events clear and set and the downsets one event
+        larger (event bits are distinct, so the label after D does not depend on the events' order)."""
+        cid = self._cross_ids.get(cross)
+        if cid is None:
+            events, pre = _events(cross)
+            n = len(events)
+            nodes, seen = [], {0}
+            for D in range(1 << n):
+                if D not in seen:
+                    continue
+                clear = sum(1 << b for i, (b, sign) in enumerate(events) if D >> i & 1 and sign < 0)
+                put = sum(1 << b for i, (b, sign) in enumerate(events) if D >> i & 1 and sign > 0)
+                succ = tuple(D | 1 << i for i in range(n) if not D >> i & 1 and D & pre[i] == pre[i])
+                seen.update(succ)
+                nodes.append((D, ~clear, put, succ))
+            cid = self._cross_ids[cross] = len(self._lattices)
+            self._lattices.append(nodes)
+        return cid
 
     def _after_action(self, F: frozenset, mask: int, cross: tuple) -> tuple[frozenset, int]:
         """The family of subsets after one action's crossings, over all their interleavings, and the mask."""
-        key = (F, mask, cross)
+        return self._after(F, mask, self._cross_id(cross))
+
+    def _after(self, F: frozenset, mask: int, cid: int) -> tuple[frozenset, int]:
+        key = (F, mask, cid)
         hit = self._lattice.get(key)
         if hit is not None:
             return hit
-        events, pre = _events(cross)
-        n = len(events)
+        delta = self.delta
         fam: dict[int, set] = {0: set(F)}
-        masks = {0: mask}
-        for D in range(1 << n):
-            if D not in fam:
-                continue
-            letter = masks[D]
-            images = {self.delta(S, letter) for S in fam[D]}
-            for i in range(n):
-                if not D >> i & 1 and D & pre[i] == pre[i]:
-                    D2 = D | 1 << i
-                    fam.setdefault(D2, set()).update(images)
-                    masks[D2] = _apply(letter, events[i])
-        full = (1 << n) - 1
-        out = (frozenset(fam[full]), masks[full])
+        for D, keep, put, succ in self._lattices[cid]:
+            letter = mask & keep | put
+            images = {delta(S, letter) for S in fam[D]}
+            for D2 in succ:
+                got = fam.get(D2)
+                if got is None:
+                    fam[D2] = set(images)
+                else:
+                    got.update(images)
+        out = (frozenset(fam[D]), letter)
         self._lattice[key] = out
         return out
 
@@ -314,6 +354,7 @@ class ExecutedWords:
         out: dict[int, tuple[int, ...]] = {}
         n = len(sig)
         budget = [self.max_orders, self.max_nodes]
+        after, ids = self._after, [self._cross_id(c) for c in sig]
 
         def rec(F: frozenset, m: int, left: int, prefix: tuple[int, ...]) -> None:
             if budget[0] <= 0 or budget[1] <= 0:
@@ -333,7 +374,7 @@ class ExecutedWords:
                 return
             for i in range(n):
                 if left >> i & 1:
-                    F2, m2 = self._after_action(F, m, sig[i])
+                    F2, m2 = after(F, m, ids[i])
                     if 0 not in F2:
                         rec(F2, m2, left & ~(1 << i), prefix + (i,))
 
@@ -374,10 +415,18 @@ class ExecutedWords:
         mask, sig, _ = self.key(s, t)
         if not sig:
             return self.matrix_for(mask, sig)[qs]
-        out = np.zeros((len(qs), self.Q), dtype=bool)
-        for r, q in enumerate(qs):
-            out[r, list(self._successors_key(int(q), mask, sig))] = True
-        return out
+        return np.array([self._row(int(q), mask, sig) for q in qs], dtype=bool).reshape(len(qs), self.Q)
+
+    def _row(self, q: int, mask: int, sig: tuple) -> np.ndarray:
+        """Row q of :meth:`matrix_for` (cached, read-only)."""
+        key = (q, mask, sig)
+        row = self._rows.get(key)
+        if row is None:
+            row = np.zeros(self.Q, dtype=bool)
+            row[list(self._successors_key(q, mask, sig))] = True
+            row.flags.writeable = False
+            self._rows[key] = row
+        return row
 
     def matrix_for(self, mask: int, sig: tuple) -> np.ndarray:
         key = (mask, sig)
@@ -498,7 +547,7 @@ class ExecutedWords:
         """NBA states (mask) reached from the set S for EVERY interleaving of the step s → t executed in
         ``order`` (intersection over the interleavings)."""
         mask, _, _ = self.key(s, t)
-        vis = [c for a in region_changing(order) if (c := crossings(self.ts, self.relevant, a))]
+        vis = [c for a in region_changing(order) if (c := self.crossings(a))]
         if not vis:
             return self.delta(S, mask)
         F = frozenset([S])
@@ -517,7 +566,7 @@ class ExecutedWords:
     def step_words(self, s: State, t: State, order: Sequence[Action]) -> Iterator[list[int]]:
         """Every word (projected letters) that executing s → t in ``order`` may produce."""
         m0 = self.ts.label_mask(s) & self.relevant
-        vis = [c for a in region_changing(order) if (c := crossings(self.ts, self.relevant, a))]
+        vis = [c for a in region_changing(order) if (c := self.crossings(a))]
         if not vis:
             yield [m0]
             return
