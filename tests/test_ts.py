@@ -357,3 +357,42 @@ def test_cli_ts_json_matches_build():
         assert ts.check_transition(s, t) is None
         assert tr["cost"] == pytest.approx(ts.cost(s, t), abs=1e-6)
         assert tr["actions"] == [ts.format_action(a, "names") for a in ts.actions(s, t)]
+
+
+def _explicit(ets):
+    return ets.states.tolist(), ets.indptr.tolist(), ets.targets.tolist(), ets.costs.tolist()
+
+
+@settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(scenarios)
+def test_batched_build_matches_one_state_at_a_time(params):
+    """The numpy batches number states and order transitions as the one-state-at-a-time search does, with
+    the same costs, also with sorted code lookups, small batches and steps that do not fit."""
+    n, m, k, rr, data = params
+    robot_radii = data.draw(st.lists(st.floats(0.3, 1.2), min_size=n, max_size=n))
+    object_radii = data.draw(st.lists(st.floats(0.1, 0.8), min_size=m, max_size=m))
+    powers = data.draw(st.lists(st.integers(1, 4), min_size=n, max_size=n))
+    required = data.draw(st.lists(st.integers(1, 6), min_size=m, max_size=m))
+    try:
+        sc = random_scenario(n, m, k, rr, robot_radii, object_radii, powers, required, data.draw(st.floats(0.0, 0.3)))
+    except UserError:
+        assume(False)
+    ts = TransitionSystem(sc)
+    arr, counts, targets, costs = ts._explore_codes(None, None)
+    got = ts._explore(None, None)
+    assert got[0].tolist() == arr.tolist() and got[1].tolist() == counts.tolist()
+    assert got[2].tolist() == targets.tolist()
+    ref = ts.build()
+    ts.batch = 3
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr("mrodrake.ts._DENSE_INDEX", 0)
+        mp.setattr("mrodrake.ts._DENSE_CODES", 0)
+        other = ts.build()
+        mp.setattr(TransitionSystem, "_explore", TransitionSystem._explore_codes)
+        slow = ts.build()
+    assert _explicit(other) == _explicit(ref) == _explicit(slow)
+    states = [tuple(int(x) for x in row) for row in arr]
+    pairs = [(a, b) for a in states[:6] for b in states]
+    want = [ts.step_fits(a, b) for a, b in pairs]
+    assert ts.steps_fit(np.array([a for a, _ in pairs]), np.array([b for _, b in pairs])).tolist() == want
+    assert [oracle_step_fits(ts, a, b) for a, b in pairs] == want
