@@ -139,6 +139,8 @@ class TransitionSystem:
         self._pairs: dict[tuple, list[tuple[int, int]]] = {}
         self._radius_ids: dict[float, int] = {}
         self._radius_values: list[float] = [0.0]
+        self._fit_tables: dict[int, np.ndarray] = {}
+        self._fit_memo: dict[int, dict[int, int]] = {}
         self._graph: RegionGraph | None = None
         self.initial = tuple(
             [self._region_index[r.initial_region] for r in scenario.robots]
@@ -336,18 +338,17 @@ class TransitionSystem:
         """:meth:`step_fits` of the steps states[src[r]] → states[dst[r]].  Per state and region, the entities
         there form a bit mask; a region loses and gains entities where the two masks differ both ways, and
         the union of the masks (free robots under the grasps considered, every object with its team) is
-        decided once per distinct (grasps, union)."""
-        N, M, K = self.N, self.M, self.K
-        n = N + M
+        decided once per distinct (grasps, union) (:meth:`_masks_fit`)."""
+        K = self.K
         S = np.asarray(states)
         src, dst = np.asarray(src, dtype=np.int64), np.asarray(dst, dtype=np.int64)
-        if n > _MASK_BITS:
+        if not self._masks_apply():
             return np.array([self.step_fits(tuple(int(x) for x in S[a]), tuple(int(x) for x in S[b]))
                              for a, b in zip(src, dst)], dtype=bool)
         ok = np.ones(len(src), dtype=bool)
         if len(src) == 0:
             return ok
-        here, grasps, gid, free = self._region_masks(S)
+        here, grasps, free = self._region_masks(S)
         for k in range(K):
             pa, pb = here[k][src], here[k][dst]
             rows = np.flatnonzero(((pa & ~pb) != 0) & ((pb & ~pa) != 0))
@@ -356,47 +357,60 @@ class TransitionSystem:
             union = pa[rows] | pb[rows]
             for side in (src, dst):
                 st = side[rows]
-                ok[rows[~self._masks_fit(k, grasps, gid[st], union & free[st])]] = False
+                ok[rows[~self._masks_fit(k, grasps[st], union & free[st])]] = False
         return ok
 
-    def _region_masks(self, S: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    def _masks_apply(self) -> bool:
+        """Do (grasp vector, entity mask) codes fit in int64 (else the checks run state by state)?"""
+        N, M = self.N, self.M
+        return N + M <= _MASK_BITS and (M + 1) ** N << (N + M) < 1 << 62
+
+    def _region_masks(self, S: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Per state (rows of S): ``here[k]``, the entities in region k as a bit mask (robot i: bit i, object j:
-        bit N + j); the distinct grasp vectors and each state's index among them; the mask of the entities
-        that count alone under the state's grasps (free robots and every object)."""
+        bit N + j); the grasp vector's code Σ_i (g_i + 1)(M + 1)^i; the mask of the entities that count alone
+        under the state's grasps (free robots and every object)."""
         N, M, K = self.N, self.M, self.K
         n = N + M
         dtype = np.int16 if n < 16 else np.int32 if n < 32 else np.int64
         pow_e = (np.int64(1) << np.arange(n, dtype=np.int64)).astype(dtype)
         here = np.stack([(S[:, :n] == k) @ pow_e for k in range(K)]).reshape(K, len(S)).astype(dtype)
         G = S[:, n:]
-        if (M + 1) ** N < 1 << 62:
-            gcode = (G.astype(np.int64) + 1) @ (np.int64(M + 1) ** np.arange(N, dtype=np.int64))
-            _, first, gid = np.unique(gcode, return_index=True, return_inverse=True)
-            grasps = G[first]
-        else:
-            grasps, gid = np.unique(G, axis=0, return_inverse=True)
+        grasps = (G.astype(np.int64) + 1) @ (np.int64(M + 1) ** np.arange(N, dtype=np.int64))
         objects = int(pow_e[N:].astype(np.int64).sum()) if M else 0
         free = (((G < 0) @ pow_e[:N].astype(np.int64)) | objects).astype(dtype)
-        return here, grasps, gid.ravel().astype(np.int64), free
+        return here, grasps, free
 
-    def _masks_fit(self, k: int, grasps: np.ndarray, gid: np.ndarray, masks: np.ndarray) -> np.ndarray:
-        """:meth:`_mask_fits` of region k for every (grasps[gid[r]], masks[r]), decided once per distinct pair
-        (an empty mask fits)."""
+    def _masks_fit(self, k: int, grasps: np.ndarray, masks: np.ndarray) -> np.ndarray:
+        """P_s for region k of the entities in ``masks[r]`` (bit i: free robot i; bit N + j: object j with its
+        team under the grasps coded ``grasps[r]``, see :meth:`_region_masks`); an empty mask fits.  Decided
+        once per distinct code and remembered (a table over all codes when it is small)."""
         n = self.N + self.M
-        size = len(grasps) << n
-        code = (gid.astype(np.int64) << n) | masks
-        if size <= _DENSE_CODES:
-            seen = np.zeros(size, dtype=bool)
-            seen[code] = True
-            present = np.flatnonzero(seen)
-            table = np.ones(size, dtype=bool)
-            table[present] = self._codes_fit(k, grasps, present)
-            return table[code]
+        code = (grasps.astype(np.int64) << n) | masks
+        space = (self.M + 1) ** self.N << n
+        if space <= _DENSE_CODES:
+            table = self._fit_tables.get(k)
+            if table is None:
+                table = self._fit_tables[k] = np.full(space, -1, dtype=np.int8)
+            got = table[code]
+            unknown = np.flatnonzero(got < 0)
+            if len(unknown):
+                seen = np.zeros(space, dtype=bool)
+                seen[code[unknown]] = True
+                new = np.flatnonzero(seen)
+                table[new] = self._codes_fit(k, new)
+                got = table[code]
+            return got.astype(bool)
         codes, inv = np.unique(code, return_inverse=True)
-        return self._codes_fit(k, grasps, codes)[inv.ravel()]
+        memo = self._fit_memo.setdefault(k, {})
+        got = np.array([memo.get(c, -1) for c in codes.tolist()], dtype=np.int8)
+        miss = np.flatnonzero(got < 0)
+        if len(miss):
+            got[miss] = self._codes_fit(k, codes[miss])
+            memo.update(zip(codes[miss].tolist(), got[miss].tolist()))
+        return got[inv.ravel()].astype(bool)
 
-    def _codes_fit(self, k: int, grasps: np.ndarray, codes: np.ndarray) -> np.ndarray:
-        """P_s for region k of each code ``gid << (N + M) | mask`` (:meth:`_masks_fit`): the entities' radii
+    def _codes_fit(self, k: int, codes: np.ndarray) -> np.ndarray:
+        """P_s for region k of each code ``grasps << (N + M) | mask`` (:meth:`_masks_fit`): the entities' radii
         as sorted ids of distinct radius values, P_s decided once per distinct multiset."""
         N, M = self.N, self.M
         n = N + M
@@ -404,12 +418,16 @@ class TransitionSystem:
         ids = np.zeros((len(codes), n), dtype=np.int64)
         for i in range(N):
             ids[:, i] = np.where(m >> i & 1, self._radius_id(self.robot_radius[i]), 0)
-        if M:
-            obj = np.array([[self._radius_id(self.covering_radius(j, team) if (team := tuple(
-                i for i in range(N) if G[i] == j)) else self.object_radius[j]) for j in range(M)]
-                for G in grasps.tolist()], dtype=np.int64).reshape(len(grasps), M)
-            for j in range(M):
-                ids[:, N + j] = np.where(m >> (N + j) & 1, obj[g, j], 0)
+        G = np.empty((len(codes), N), dtype=np.int64)
+        for i in range(N):
+            g, d = np.divmod(g, M + 1)
+            G[:, i] = d - 1
+        for j in range(M):
+            team = (G == j) @ (np.int64(1) << np.arange(N, dtype=np.int64))
+            teams, inv = np.unique(team, return_inverse=True)
+            rid = np.array([self._radius_id(self.covering_radius(j, tuple(i for i in range(N) if t >> i & 1))
+                                            if t else self.object_radius[j]) for t in teams.tolist()], dtype=np.int64)
+            ids[:, N + j] = np.where(m >> (N + j) & 1, rid[inv.ravel()], 0)
         ids.sort(axis=1)
         values = self._radius_values
         if len(values) ** n < 1 << 62:
@@ -642,7 +660,7 @@ class TransitionSystem:
         """
         t0 = time.perf_counter()
         N, M, K = self.N, self.M, self.K
-        if K ** (N + M) * (M + 1) ** N < 1 << 62 and N + M <= _MASK_BITS:
+        if K ** (N + M) * (M + 1) ** N < 1 << 62 and self._masks_apply():
             arr, counts, tg, costs = self._explore(max_states, progress)
         else:
             arr, counts, tg, costs = self._explore_codes(max_states, progress)
@@ -804,10 +822,10 @@ class TransitionSystem:
 
     def _states_fit(self, S: np.ndarray) -> np.ndarray:
         """:meth:`_regions_fit` of every row of S (co-located states)."""
-        here, grasps, gid, free = self._region_masks(S)
+        here, grasps, free = self._region_masks(S)
         ok = np.ones(len(S), dtype=bool)
         for k in range(self.K):
-            ok &= self._masks_fit(k, grasps, gid, here[k] & free)
+            ok &= self._masks_fit(k, grasps, here[k] & free)
         return ok
 
     def _expand_tables(self) -> dict:

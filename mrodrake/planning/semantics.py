@@ -33,7 +33,7 @@ cycle) must satisfy the formula, i.e. the word graph times an NBA of ¬φ has no
 from __future__ import annotations
 
 from collections.abc import Iterator, Sequence
-from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 from scipy.sparse import csr_matrix
@@ -64,8 +64,7 @@ def region_changing(actions: Sequence[Action]) -> list[Action]:
     return [a for a in actions if isinstance(a, (Navigate, Transport))]
 
 
-@dataclass(frozen=True)
-class Crossing:
+class Crossing(NamedTuple):
     """One body of a region-changing action: the AP_φ bit its leaving clears and the bit its entering sets
     (−1 where AP_φ does not mention the source / destination proposition), and the bodies of the same
     action that must have left the source before this one can enter the destination (:func:`entry_order`)."""
@@ -330,11 +329,14 @@ class ExecutedWords:
         hit = self._lattice.get(key)
         if hit is not None:
             return hit
-        delta = self.delta
-        fam: dict[int, set] = {0: set(F)}
+        delta, known = self.delta, self._delta
+        fam: dict[int, set] = {0: F}
         for D, keep, put, succ in self._lattices[cid]:
             letter = mask & keep | put
-            images = {delta(S, letter) for S in fam[D]}
+            images = set()
+            for S in fam[D]:
+                x = known.get((S, letter))
+                images.add(delta(S, letter) if x is None else x)
             for D2 in succ:
                 got = fam.get(D2)
                 if got is None:
@@ -354,7 +356,7 @@ class ExecutedWords:
         out: dict[int, tuple[int, ...]] = {}
         n = len(sig)
         budget = [self.max_orders, self.max_nodes]
-        after, ids = self._after, [self._cross_id(c) for c in sig]
+        after, known, ids = self._after, self._lattice, [self._cross_id(c) for c in sig]
 
         def rec(F: frozenset, m: int, left: int, prefix: tuple[int, ...]) -> None:
             if budget[0] <= 0 or budget[1] <= 0:
@@ -374,7 +376,8 @@ class ExecutedWords:
                 return
             for i in range(n):
                 if left >> i & 1:
-                    F2, m2 = after(F, m, ids[i])
+                    hit = known.get((F, m, ids[i]))
+                    F2, m2 = after(F, m, ids[i]) if hit is None else hit
                     if 0 not in F2:
                         rec(F2, m2, left & ~(1 << i), prefix + (i,))
 

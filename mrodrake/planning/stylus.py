@@ -314,8 +314,11 @@ class _Tree:
         self.closers: list[int] = []
         self.frontier: dict[float, list[tuple[float, int]]] = {}  # per bucket: (estimated steps, node)
         self._opts: dict[int, list] = {}
+        self._adj: list[list[list]] = []  # per tree state: neighbours, χ, visibility (symmetric strategies)
         self.iterations = 0
         tid = self._add_state(root)
+        if planner.strategy.symmetric:
+            self._link(tid)
         self._new_node(tid, root_q, -1, 0.0)
 
     # --------------------------------------------------------------------------------- storage
@@ -390,27 +393,40 @@ class _Tree:
         n = len(self.states)
         row = np.asarray(s, dtype=self.X.dtype)[None, :]
         X = self.X[:n]
-        pred = np.flatnonzero(p.trans.mask(X, s))
-        if p.banned and s in p.banned:
-            pred = pred[[self.states[u] not in p.banned[s] for u in pred]].astype(np.int64)
-        if tid is None:
-            tid = self._add_state(s)
+        if p.strategy.symmetric:
+            if tid is None:
+                tid = self._add_state(s)
+                pred, chi, seen = self._link(tid)
+            else:
+                pred, chi, seen = self._adjacent(tid)
+            if p.banned and s in p.banned:
+                keep = np.array([self.states[u] not in p.banned[s] for u in pred], dtype=bool)
+                pred, chi, seen = pred[keep], chi[keep], seen[keep]
+        else:
+            pred = np.flatnonzero(p.trans.mask(X, s))
+            if p.banned and s in p.banned:
+                pred = pred[[self.states[u] not in p.banned[s] for u in pred]].astype(np.int64)
+            if tid is None:
+                tid = self._add_state(s)
+            seen = None
         if len(pred) == 0:
             return
-        chi = p.trans.cost(X[pred], row)
+        if seen is None:
+            chi = p.trans.cost(X[pred], row)
+            seen = p.words.visible(X[pred], s)
         pi, pq = np.nonzero(self.node_of[pred] >= 0)  # candidate parent nodes (tree state, NBA state)
         if len(pi) == 0:  # only states without nodes (reached through banned steps) lead here
             return
         parents = self.node_of[pred[pi], pq]
         base = self.C[parents] + chi[pi]
         T = p.labels.T[self.lid[pred[pi]], pq]  # (candidates, Q): NBA moves of each candidate
-        vis = np.flatnonzero(p.words.visible(X[pred], s))
+        vis = np.flatnonzero(seen)
         if len(vis):  # steps whose crossings the task sees: executed-word moves instead of the label's
             T = T.copy()
-            for k in vis:
-                rows = np.flatnonzero(pi == k)
-                if len(rows):
-                    T[rows] = p.words.rows(self.states[int(pred[k])], s, pq[rows])
+            lo, hi = np.searchsorted(pi, vis, "left").tolist(), np.searchsorted(pi, vis, "right").tolist()
+            for k, a, b in zip(vis.tolist(), lo, hi):  # pi is sorted: the rows of k are pi[a:b]
+                if b > a:
+                    T[a:b] = p.words.rows(self.states[int(pred[k])], s, pq[a:b])
         tot = np.where(T, base[:, None], INF)
         best = tot.argmin(axis=0)
         best_cost = tot[best, np.arange(self.Q)]
@@ -445,23 +461,55 @@ class _Tree:
             if p.banned and s in p.banned:
                 pred = pred[[self.states[u] not in p.banned[s] for u in pred]].astype(np.int64)
             chi = p.trans.cost(row, X[pred])
+            seen = p.words.visible(X[pred], s)
         for v in dict.fromkeys(changed):  # symmetric relation and χ: successors of s are its predecessors
-            self._rewire_from(v, pred, chi)
+            self._rewire_from(v, pred, chi, seen)
 
-    def _rewire_from(self, v: int, succ: np.ndarray, chi: np.ndarray) -> None:
-        """Reparent the nodes at TS states ``succ`` (with costs ``chi`` from v's state) through v."""
+    def _link(self, tid: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The neighbours of the new tree state ``tid`` among the earlier ones (symmetric strategies): the
+        transition test, χ and visibility computed once and remembered for both ends (:meth:`_adjacent`)."""
+        p = self.p
+        s = self.states[tid]
+        rows = self.X[:tid + 1]
+        nb = np.flatnonzero(p.trans.mask(rows, s))
+        chi = p.trans.cost(rows[nb], rows[tid][None, :])
+        seen = p.words.visible(rows[nb], s)
+        self._adj.append([nb.tolist(), chi.tolist(), seen.tolist()])
+        adj = self._adj
+        for u, c, w in zip(nb.tolist(), chi.tolist(), seen.tolist()):
+            if u != tid:
+                entry = adj[u]
+                entry[0].append(tid)
+                entry[1].append(c)
+                entry[2].append(w)
+        lower = nb < tid
+        return nb[lower], chi[lower], seen[lower]
+
+    def _adjacent(self, tid: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(tree states, χ, visibility) of the transitions between tree state ``tid`` and every tree state,
+        in increasing order (what the transition test over all tree states gives)."""
+        nb, chi, seen = self._adj[tid]
+        return np.array(nb, dtype=np.int64), np.array(chi, dtype=float), np.array(seen, dtype=bool)
+
+    def _rewire_from(self, v: int, succ: np.ndarray, chi: np.ndarray, vis: np.ndarray) -> None:
+        """Reparent the nodes at TS states ``succ`` (with costs ``chi`` from v's state; ``vis``: the steps
+        whose crossings the task sees) through v."""
         p = self.p
         tid = self.n_tid[v]
         s = self.states[tid]
         new_cost = self.C[v] + chi
-        vis = p.words.visible(self.X[succ], s)
         plain = ~vis
         for q2 in p.labels.succ[self.lid[tid]][self.n_q[v]]:
             ys = self.node_of[succ, q2]
             better = plain & (ys >= 0) & (new_cost < self.C[np.maximum(ys, 0)] - 1e-9)
             for k in np.flatnonzero(better):
                 self._try_reparent(int(ys[k]), v, float(chi[k]))
-        for k in np.flatnonzero(vis):
+        vk = np.flatnonzero(vis)
+        if len(vk):  # costs only fall while rewiring: skip states where no node can get cheaper through v
+            ys = self.node_of[succ[vk]]
+            Cy = np.where((ys >= 0) & (ys != v), self.C[np.maximum(ys, 0)], -INF)
+            vk = vk[(new_cost[vk][:, None] < Cy - 1e-9).any(axis=1)]
+        for k in vk:
             row = p.words.rows(s, self.states[int(succ[k])], [self.n_q[v]])[0]
             for q2 in np.flatnonzero(row):
                 y = int(self.node_of[succ[k], q2])
