@@ -142,6 +142,7 @@ class TransitionSystem:
         self._fit_tables: dict[int, np.ndarray] = {}
         self._fit_memo: dict[int, dict[int, int]] = {}
         self._graph: RegionGraph | None = None
+        self._conn: dict[float, np.ndarray] = {}
         self.initial = tuple(
             [self._region_index[r.initial_region] for r in scenario.robots]
             + [self._region_index[o.initial_region] for o in scenario.objects]
@@ -191,7 +192,10 @@ class TransitionSystem:
     def connections(self, radius: float) -> np.ndarray:
         """``C[k, k']``: can an entity of ``radius`` travel between regions k and k'
         (:class:`~mrodrake.geometry.RegionGraph`: narrow passages and regions in the way block it)."""
-        return self.region_graph.matrix(radius)
+        C = self._conn.get(radius)
+        if C is None:
+            C = self._conn[radius] = self.region_graph.matrix(radius)
+        return C
 
     def connected(self, radius: float, k: int, k2: int) -> bool:
         return self.region_graph.connected(radius, k, k2)
@@ -326,6 +330,8 @@ class TransitionSystem:
         (:meth:`steps_fit_index`)."""
         A = np.asarray(A)
         B = np.asarray(B)
+        if B.ndim == 1 and self._masks_apply():
+            return self._steps_fit_one(A.reshape(-1, 2 * self.N + self.M), [int(x) for x in B])
         if B.ndim == 1:
             states = np.concatenate([A.reshape(-1, 2 * self.N + self.M), B[None, :].astype(A.dtype)])
             dst = np.full(len(A), len(A), dtype=np.int64)
@@ -360,6 +366,28 @@ class TransitionSystem:
                 ok[rows[~self._masks_fit(k, grasps[st], union & free[st])]] = False
         return ok
 
+    def _steps_fit_one(self, A: np.ndarray, s: list[int]) -> np.ndarray:
+        """:meth:`steps_fit` of the steps A[r] → s for one state s."""
+        N, M = self.N, self.M
+        n = N + M
+        ok = np.ones(len(A), dtype=bool)
+        if len(A) == 0:
+            return ok
+        here, grasps, free = self._region_masks(A)
+        g_s = sum((s[n + i] + 1) * (M + 1) ** i for i in range(N))
+        f_s = sum(1 << i for i in range(N) if s[n + i] < 0) | (((1 << M) - 1) << N)
+        for k in range(self.K):
+            h = sum(1 << e for e in range(n) if s[e] == k)
+            pa = here[k]
+            rows = np.flatnonzero(((pa & ~h) != 0) & ((pa | h) != pa))
+            if len(rows) == 0:
+                continue
+            union = pa[rows] | h
+            fit = self._masks_fit(k, grasps[rows], union & free[rows])
+            fit &= self._masks_fit(k, np.full(len(rows), g_s, dtype=np.int64), union & f_s)
+            ok[rows[~fit]] = False
+        return ok
+
     def _masks_apply(self) -> bool:
         """Do (grasp vector, entity mask) codes fit in int64 (else the checks run state by state)?"""
         N, M = self.N, self.M
@@ -373,7 +401,7 @@ class TransitionSystem:
         n = N + M
         dtype = np.int16 if n < 16 else np.int32 if n < 32 else np.int64
         pow_e = (np.int64(1) << np.arange(n, dtype=np.int64)).astype(dtype)
-        here = np.stack([(S[:, :n] == k) @ pow_e for k in range(K)]).reshape(K, len(S)).astype(dtype)
+        here = (S[None, :, :n] == np.arange(K)[:, None, None]) @ pow_e
         G = S[:, n:]
         grasps = (G.astype(np.int64) + 1) @ (np.int64(M + 1) ** np.arange(N, dtype=np.int64))
         objects = int(pow_e[N:].astype(np.int64).sum()) if M else 0

@@ -32,6 +32,7 @@ cycle) must satisfy the formula, i.e. the word graph times an NBA of ¬φ has no
 
 from __future__ import annotations
 
+import math
 from collections.abc import Iterator, Sequence
 from typing import NamedTuple
 
@@ -141,6 +142,11 @@ def _events(cross: Sequence[Crossing]) -> tuple[list[tuple[int, int]], list[int]
                     need |= 1 << leave_of[e]
             pre.append(need)
     return events, pre
+
+
+def _prefixes(n: int) -> int:
+    """Order prefixes of n actions, the empty one included: Σ_k n!/(n−k)!."""
+    return sum(math.perm(n, k) for k in range(n + 1))
 
 
 def _apply(mask: int, event: tuple[int, int]) -> int:
@@ -355,8 +361,31 @@ class ExecutedWords:
         used (sound, possibly incomplete)."""
         out: dict[int, tuple[int, ...]] = {}
         n = len(sig)
-        budget = [self.max_orders, self.max_nodes]
         after, known, ids = self._after, self._lattice, [self._cross_id(c) for c in sig]
+        if math.factorial(n) <= self.max_orders and _prefixes(n) <= self.max_nodes:
+            # the budget cannot run out: depth first over the orders, lexicographic
+            stack = [(frozenset([1 << q]), mask, (1 << n) - 1, ())]
+            while stack:
+                F, m, left, prefix = stack.pop()
+                if left == 0:
+                    common = -1
+                    for S in F:
+                        common &= S
+                    d = 0
+                    while common > 0:
+                        if common & 1:
+                            out.setdefault(d, prefix)
+                        common >>= 1
+                        d += 1
+                    continue
+                for i in range(n - 1, -1, -1):
+                    if left >> i & 1:
+                        hit = known.get((F, m, ids[i]))
+                        F2, m2 = after(F, m, ids[i]) if hit is None else hit
+                        if 0 not in F2:
+                            stack.append((F2, m2, left & ~(1 << i), prefix + (i,)))
+            return out
+        budget = [self.max_orders, self.max_nodes]
 
         def rec(F: frozenset, m: int, left: int, prefix: tuple[int, ...]) -> None:
             if budget[0] <= 0 or budget[1] <= 0:
