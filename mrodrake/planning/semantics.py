@@ -193,6 +193,12 @@ class GuardTable:
             used = 0
             for p, n, _ in flat:
                 used |= p | n
+            if used.bit_length() < 64 and self.nba.num_states < 64:  # cubes and letters as int64 words
+                table = (used, np.array([p for p, _, _ in flat], dtype=np.uint64),
+                         np.array([n for _, n, _ in flat], dtype=np.uint64),
+                         np.array([1 << d for _, _, d in flat], dtype=np.uint64))
+                self._tables[q] = table
+                return table
             bits = np.array([b for b in range(used.bit_length()) if used >> b & 1], dtype=np.int64)
             nbytes = (used.bit_length() + 7) // 8
             words = (len(bits) + 63) // 64
@@ -216,6 +222,11 @@ class GuardTable:
         table = self._table(q)
         if table is None:
             return sum(1 << d for d in self.nba.successors(q, letter))
+        if len(table) == 4:
+            used, P, N, dbits = table
+            L = np.uint64(letter & used)
+            ok = ((P & ~L) == 0) & ((N & L) == 0)
+            return int(np.bitwise_or.reduce(dbits[ok])) if ok.any() else 0
         used, nbytes, bits, words, P, N, dst = table
         L = self._pack(letter & used, nbytes, bits, words)
         if words == 1:
@@ -259,6 +270,8 @@ class ExecutedWords:
         self._some: dict[tuple, tuple[np.ndarray, np.ndarray]] = {}
         self._cross: dict[Action, tuple[Crossing, ...]] = {}
         self._keys: dict[tuple[State, State], tuple[int, tuple, tuple[Action, ...]]] = {}
+        self._sigs: dict[tuple[State, State], tuple[int, tuple]] = {}
+        self._move_cross: dict[tuple, tuple[Crossing, ...]] = {}
         self._rows: dict[tuple, np.ndarray] = {}
         self._acc = sum(1 << f for f in nba.accepting)
 
@@ -303,6 +316,32 @@ class ExecutedWords:
         out = self.ts.label_mask(s) & self.relevant, tuple(c for _, c in vis), [a for a, _ in vis]
         if actions is None:
             self._keys[(s, t)] = (out[0], out[1], tuple(out[2]))
+        return out
+
+    def signature(self, s: State, t: State) -> tuple[int, tuple]:
+        """The first two of :meth:`key` (cached), read off the two states without building the actions
+        (their order as in :meth:`~mrodrake.ts.TransitionSystem.actions`: transports, then navigations)."""
+        hit = self._sigs.get((s, t))
+        if hit is not None:
+            return hit
+        N, M = self.ts.N, self.ts.M
+        moves = []
+        for j in range(M):
+            if s[N + j] != t[N + j]:
+                team = tuple(i for i in range(N) if s[N + M + i] == j)
+                moves.append(("T", j, team, s[N + j], t[N + j]))
+        for i in range(N):
+            if s[N + M + i] < 0 and t[N + M + i] < 0 and s[i] != t[i]:
+                moves.append(("N", i, s[i], t[i]))
+        sig = []
+        for m in moves:
+            c = self._move_cross.get(m)
+            if c is None:
+                a = Transport(m[1], m[2], m[3], m[4]) if m[0] == "T" else Navigate(m[1], m[2], m[3])
+                c = self._move_cross[m] = self.crossings(a)
+            if c:
+                sig.append(c)
+        out = self._sigs[(s, t)] = (self.ts.label_mask(s) & self.relevant, tuple(sig))
         return out
 
     def _cross_id(self, cross: tuple) -> int:
@@ -439,12 +478,12 @@ class ExecutedWords:
 
     def matrix(self, s: State, t: State) -> np.ndarray:
         """``M[q, q']``: is (s, q) → (t, q') a product edge (s → t assumed a TS transition)?"""
-        mask, sig, _ = self.key(s, t)
+        mask, sig = self.signature(s, t)
         return self.matrix_for(mask, sig)
 
     def rows(self, s: State, t: State, qs) -> np.ndarray:
         """``M[qs]`` of :meth:`matrix`, computing only the rows asked for."""
-        mask, sig, _ = self.key(s, t)
+        mask, sig = self.signature(s, t)
         if not sig:
             return self.matrix_for(mask, sig)[qs]
         return np.array([self._row(int(q), mask, sig) for q in qs], dtype=bool).reshape(len(qs), self.Q)
@@ -545,7 +584,7 @@ class ExecutedWords:
 
     def some_matrix(self, s: State, t: State) -> tuple[np.ndarray, np.ndarray]:
         """:meth:`some_matrix_for` of the step s → t."""
-        mask, sig, _ = self.key(s, t)
+        mask, sig = self.signature(s, t)
         return self.some_matrix_for(mask, sig)
 
     def visible(self, X: np.ndarray, Y) -> np.ndarray:

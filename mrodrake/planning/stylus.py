@@ -498,12 +498,12 @@ class _Tree:
         tid = self.n_tid[v]
         s = self.states[tid]
         new_cost = self.C[v] + chi
-        plain = ~vis
-        for q2 in p.labels.succ[self.lid[tid]][self.n_q[v]]:
-            ys = self.node_of[succ, q2]
-            better = plain & (ys >= 0) & (new_cost < self.C[np.maximum(ys, 0)] - 1e-9)
-            for k in np.flatnonzero(better):
-                self._try_reparent(int(ys[k]), v, float(chi[k]))
+        q2s = p.labels.succ[self.lid[tid]][self.n_q[v]]
+        if q2s:  # candidates by the costs before any reparenting (they only fall), re-checked in order
+            ys = self.node_of[succ][:, q2s].T
+            better = ~vis & (ys >= 0) & (new_cost < self.C[np.maximum(ys, 0)] - 1e-9)
+            for a, k in zip(*np.nonzero(better)):
+                self._try_reparent(int(ys[a, k]), v, float(chi[k]))
         vk = np.flatnonzero(vis)
         if len(vk):  # costs only fall while rewiring: skip states where no node can get cheaper through v
             ys = self.node_of[succ[vk]]
