@@ -90,6 +90,8 @@ class _Transitions:
         self.required = np.array(ts.required_power, dtype=float)
         self.dist = ts.dist
         self.gc = ts.grasp_cost
+        self._robots: dict[tuple[int, int, int], np.ndarray] = {}
+        self._objects: dict[tuple, np.ndarray] = {}
 
     def mask(self, X: np.ndarray, s) -> np.ndarray:
         """``ok[r]``: is ``X[r] → s`` a TS transition?  Rows of X and s are valid states.
@@ -117,45 +119,68 @@ class _Transitions:
             if len(rows):
                 ok[rows] = self.ts.steps_fit(X[rows], s)
             return ok
-        s = np.asarray(s, dtype=np.int64).ravel()
+        s = tuple(int(x) for x in np.asarray(s).ravel())
         XR, XO, XG = X[:, :N], X[:, N : N + M], X[:, N + M :]
-        sR, sO, sG = s[:N], s[N : N + M], s[N + M :]
-        moves = XR != sR
-        moved = XO != sO
-        changed = XG != sG
-        has = sG >= 0
-        col_moved = moved[:, np.maximum(sG, 0)]  # per robot: did s's object of that robot move?
-        bad = changed & ((has & (XG >= 0)) | moves | (has & col_moved))
-        bad |= ~changed & has & (moves != col_moved)
-        free = np.flatnonzero(~has)
-        if free.size:  # robots free in s but grasping in X[r]: the object X[r] holds must stay
-            ext = np.zeros((n, M + 1), dtype=bool)
-            ext[:, :M] = moved
-            sub = XG[:, free].astype(np.int64)
-            idx = np.where(sub >= 0, sub, M) + (np.arange(n, dtype=np.int64) * (M + 1))[:, None]
-            bad[:, free] |= ext.ravel()[idx]
-        ok = ~bad.any(axis=1)
-        power = np.zeros(M)
-        for i in np.flatnonzero(has):
-            power[sG[i]] += self.power[i]
-        weak = power < self.required
-        if weak.any():
-            ok &= ~moved[:, weak].any(axis=1)
-        ts = self.ts
-        for i in np.flatnonzero(~has):  # free robots that navigate: a passage wide enough
-            C = ts.connections(ts.robot_radius[i])
-            rows = np.flatnonzero(ok & moves[:, i])
-            ok[rows] &= C[XR[rows, i], sR[i]]
-        for j in np.flatnonzero(moved.any(axis=0)):  # objects carried by s's team
-            team = tuple(int(i) for i in np.flatnonzero(sG == j))
-            if team:
-                C = ts.connections(ts.covering_radius(int(j), team))
-                rows = np.flatnonzero(ok & moved[:, j])
-                ok[rows] &= C[XO[rows, j], sO[j]]
+        ok = np.ones(n, dtype=bool)
+        for j in range(M):
+            ok &= self._object_table(j, s)[XO[:, j]]
+        moved = np.zeros((n, M + 1), dtype=np.int64)  # last column: no object (grasp -1)
+        moved[:, :M] = XO != np.array(s[N : N + M])
+        rows = np.arange(n)
+        for i in range(N):
+            g = s[N + M + i]
+            xg = XG[:, i]
+            flag = moved[:, g] if g >= 0 else moved[rows, xg]
+            ok &= self._robot_table(i, s[i], g)[(XR[:, i] * (M + 1) + (xg + 1)) * 2 + flag]
         rows = np.flatnonzero(ok)
         if len(rows):
-            ok[rows] = ts.steps_fit(X[rows], s)
+            ok[rows] = self.ts.steps_fit(X[rows], s)
         return ok
+
+    def _robot_table(self, i: int, r: int, g: int) -> np.ndarray:
+        """Robot i's rules for steps between s (robot in region r, grasping g) and any state: a table over
+        (region, grasp + 1, has the object in question moved) of the other state (cached).  The object in
+        question is g when s grasps one, else the one the other state grasps."""
+        key = (i, r, g)
+        T = self._robots.get(key)
+        if T is None:
+            ts, M = self.ts, self.M
+            C = ts.connections(ts.robot_radius[i])
+            T = np.zeros((ts.K, M + 1, 2), dtype=bool)
+            for xr in range(ts.K):
+                for xg in range(-1, M):
+                    for flag in (False, True):
+                        moves, changed = xr != r, xg != g
+                        if g >= 0:
+                            bad = (xg >= 0 or moves or flag) if changed else moves != flag
+                        elif changed:
+                            bad = moves or flag
+                        else:
+                            bad = moves and not C[xr, r]
+                        T[xr, xg + 1, int(flag)] = not bad
+            T = self._robots[key] = T.ravel()
+        return T
+
+    def _object_table(self, j: int, s: State) -> np.ndarray:
+        """``U[k]``: may object j be in region k in the other state of a step with s?  Only where it is in s,
+        or one travel away for s's team if that team is powerful enough (Λ; cached)."""
+        N, M = self.N, self.M
+        team = tuple(i for i in range(N) if s[N + M + i] == j)
+        o = s[N + j]
+        key = (j, o, team)
+        U = self._objects.get(key)
+        if U is None:
+            ts = self.ts
+            power = 0.0
+            for i in team:
+                power += ts.power[i]
+            U = np.zeros(ts.K, dtype=bool)
+            U[o] = True
+            if team and not power < ts.required_power[j]:
+                C = ts.connections(ts.covering_radius(j, team))
+                U |= C[:, o]
+            self._objects[key] = U
+        return U
 
     def cost(self, A: np.ndarray, B: np.ndarray) -> np.ndarray:
         """χ(A[r], B[r]) for all rows (broadcast like :meth:`mask`)."""
