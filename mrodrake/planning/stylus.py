@@ -20,7 +20,8 @@ The product is never built.  The algorithm, as implemented here:
    TS successor of ``s`` is sampled toward that cube with probability ``p_new``, else uniformly at
    random (:mod:`~mrodrake.planning.sampler`).  The new TS state is added with every NBA state it can
    take, each with the **cheapest feasible parent** among all tree nodes (a vectorised transition test
-   over all tree states), closed under the free idle step, and then tree nodes at neighbouring TS states
+   over all tree states, once per new TS state and remembered for both ends), closed under the free idle
+   step, and then tree nodes at neighbouring TS states
    are **rewired** through the new nodes when cheaper (the public MATLAB code has rewiring switched
    off; here the cost keeps improving with more iterations).  Re-sampling a known state rewires too.
    The TS relation and χ are symmetric, so one vectorised test gives both parents and rewiring targets.
