@@ -15,18 +15,23 @@ import sys
 import time
 from collections.abc import Callable
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from mrodrake.errors import UserError
-from mrodrake.planning.plan import plan_scenario
-from mrodrake.scenario import Scenario, load_scenario
-from mrodrake.systems.mission import Mission, MissionLog, load_plan
-from mrodrake.viz.outputs import OutputError, ensure_output_dir, write_mission
+
+if TYPE_CHECKING:
+    from mrodrake.systems.mission import MissionLog
 
 
 def run_mission(scenario, plan=None, planner: str = "stylus", suffix_cycles: int = 1, seed: int = 0,
                 out_dir=None, progress: Callable[[int, int], None] | None = None, **mission_options) -> MissionLog:
     """Plan (unless ``plan`` is given: a Plan or a plan.json path), simulate the prefix and ``suffix_cycles``
     suffix cycles in one diagram, write the outputs to ``out_dir`` (if given) and return the log."""
+    from mrodrake.planning.plan import plan_scenario
+    from mrodrake.scenario import Scenario, load_scenario
+    from mrodrake.systems.mission import Mission, load_plan
+    from mrodrake.viz.outputs import ensure_output_dir, write_mission
+
     if not isinstance(scenario, Scenario):
         scenario = load_scenario(scenario)
     if plan is None:
@@ -61,6 +66,11 @@ def add_subparser(subparsers) -> argparse.ArgumentParser:
 
 
 def run(args: argparse.Namespace) -> int:
+    from mrodrake.planning.plan import plan_scenario
+    from mrodrake.scenario import load_scenario
+    from mrodrake.systems.mission import Mission, load_plan
+    from mrodrake.viz.outputs import OutputError, ensure_output_dir, write_mission
+
     if args.suffix_cycles < 0:
         raise UserError(f"--suffix-cycles: must be >= 0, got {args.suffix_cycles}")
     scenario = load_scenario(args.scenario)

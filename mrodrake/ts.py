@@ -33,7 +33,7 @@ import itertools
 import math
 import time
 from collections.abc import Iterator, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.sparse import csr_matrix
@@ -48,6 +48,13 @@ from mrodrake.scenario import Scenario
 _NO_PASSAGE = f"no passage wide enough (walls, obstacles and other regions grown by the radius + {CONTROL_MARGIN:g} m)"
 
 State = tuple
+
+#: Entities (robots + objects) up to which region occupancy is handled as int64 bit masks.
+_MASK_BITS = 40
+#: Largest code table the vectorised checks allocate densely (else they sort the codes).
+_DENSE_CODES = 1 << 22
+#: Largest state-code space :meth:`TransitionSystem.build` indexes with a dense array (else sorted codes).
+_DENSE_INDEX = 1 << 24
 
 
 @dataclass(frozen=True, order=True)
@@ -140,7 +147,12 @@ class TransitionSystem:
         self._valid: dict[State, bool] = {}
         self._label: dict[State, int] = {}
         self._pairs: dict[tuple, list[tuple[int, int]]] = {}
+        self._radius_ids: dict[float, int] = {}
+        self._radius_values: list[float] = [0.0]
+        self._fit_tables: dict[int, np.ndarray] = {}
+        self._fit_memo: dict[int, dict[int, int]] = {}
         self._graph: RegionGraph | None = None
+        self._conn: dict[float, np.ndarray] = {}
         self.initial = tuple(
             [self._region_index[r.initial_region] for r in scenario.robots]
             + [self._region_index[o.initial_region] for o in scenario.objects]
@@ -190,7 +202,10 @@ class TransitionSystem:
     def connections(self, radius: float) -> np.ndarray:
         """``C[k, k']``: can an entity of ``radius`` travel between regions k and k'
         (:class:`~mrodrake.geometry.RegionGraph`: narrow passages and regions in the way block it)."""
-        return self.region_graph.matrix(radius)
+        C = self._conn.get(radius)
+        if C is None:
+            C = self._conn[radius] = self.region_graph.matrix(radius)
+        return C
 
     def connected(self, radius: float, k: int, k2: int) -> bool:
         return self.region_graph.connected(radius, k, k2)
@@ -406,45 +421,165 @@ class TransitionSystem:
         return self.region_fits(k, radii)
 
     def steps_fit(self, A: np.ndarray, B: np.ndarray) -> np.ndarray:
-        """:meth:`step_fits` of the steps A[r] → B[r] (rows of state arrays; B may be one state), vectorised:
-        per region that loses and gains entities, the union's units are encoded as one integer (free robots,
-        then per object its presence and its team), and P_s is decided once per distinct code."""
-        N, M, K = self.N, self.M, self.K
-        n = N + M
-        A = np.asarray(A, dtype=np.int64)
-        B = np.broadcast_to(np.asarray(B, dtype=np.int64), A.shape)
-        ok = np.ones(len(A), dtype=bool)
-        pow_n = 1 << np.arange(N, dtype=np.int64)
-        moved = A[:, :n] != B[:, :n]
-        dep = [(moved & (A[:, :n] == k)).any(axis=1) for k in range(K)]
-        arr = [(moved & (B[:, :n] == k)).any(axis=1) for k in range(K)]
+        """:meth:`step_fits` of the steps A[r] → B[r] (rows of state arrays; B may be one state), vectorised
+        (:meth:`steps_fit_index`)."""
+        A = np.asarray(A)
+        B = np.asarray(B)
+        if B.ndim == 1 and self._masks_apply():
+            return self._steps_fit_one(A.reshape(-1, 2 * self.N + self.M), [int(x) for x in B])
+        if B.ndim == 1:
+            states = np.concatenate([A.reshape(-1, 2 * self.N + self.M), B[None, :].astype(A.dtype)])
+            dst = np.full(len(A), len(A), dtype=np.int64)
+        else:
+            states = np.concatenate([A, B.astype(A.dtype)])
+            dst = np.arange(len(A), 2 * len(A), dtype=np.int64)
+        return self.steps_fit_index(states, np.arange(len(A), dtype=np.int64), dst)
+
+    def steps_fit_index(self, states: np.ndarray, src: np.ndarray, dst: np.ndarray) -> np.ndarray:
+        """:meth:`step_fits` of the steps states[src[r]] → states[dst[r]].  Per state and region, the entities
+        there form a bit mask; a region loses and gains entities where the two masks differ both ways, and
+        the union of the masks (free robots under the grasps considered, every object with its team) is
+        decided once per distinct (grasps, union) (:meth:`_masks_fit`)."""
+        K = self.K
+        S = np.asarray(states)
+        src, dst = np.asarray(src, dtype=np.int64), np.asarray(dst, dtype=np.int64)
+        if not self._masks_apply():
+            return np.array([self.step_fits(tuple(int(x) for x in S[a]), tuple(int(x) for x in S[b]))
+                             for a, b in zip(src, dst)], dtype=bool)
+        ok = np.ones(len(src), dtype=bool)
+        if len(src) == 0:
+            return ok
+        here, grasps, free = self._region_masks(S)
         for k in range(K):
-            rows = np.flatnonzero(dep[k] & arr[k])
+            pa, pb = here[k][src], here[k][dst]
+            rows = np.flatnonzero(((pa & ~pb) != 0) & ((pb & ~pa) != 0))
             if len(rows) == 0:
                 continue
-            a, b = A[rows], B[rows]
-            here = (a[:, :n] == k) | (b[:, :n] == k)
-            for G in (a[:, n:], b[:, n:]):
-                code = (here[:, :N] & (G < 0)).astype(np.int64) @ pow_n
-                shift = N
-                for j in range(M):
-                    team = (G == j).astype(np.int64) @ pow_n
-                    code |= (here[:, N + j].astype(np.int64) << shift) | (team << (shift + 1))
-                    shift += N + 1
-                codes, inv = np.unique(code, return_inverse=True)
-                fits = np.array([self._code_fits(k, int(c)) for c in codes], dtype=bool)
-                ok[rows[~fits[inv.ravel()]]] = False
+            union = pa[rows] | pb[rows]
+            for side in (src, dst):
+                st = side[rows]
+                ok[rows[~self._masks_fit(k, grasps[st], union & free[st])]] = False
         return ok
 
-    def _code_fits(self, k: int, code: int) -> bool:
+    def _steps_fit_one(self, A: np.ndarray, s: list[int]) -> np.ndarray:
+        """:meth:`steps_fit` of the steps A[r] → s for one state s."""
+        N, M = self.N, self.M
+        n = N + M
+        ok = np.ones(len(A), dtype=bool)
+        if len(A) == 0:
+            return ok
+        here, grasps, free = self._region_masks(A)
+        g_s = sum((s[n + i] + 1) * (M + 1) ** i for i in range(N))
+        f_s = sum(1 << i for i in range(N) if s[n + i] < 0) | (((1 << M) - 1) << N)
+        for k in range(self.K):
+            h = sum(1 << e for e in range(n) if s[e] == k)
+            pa = here[k]
+            rows = np.flatnonzero(((pa & ~h) != 0) & ((pa | h) != pa))
+            if len(rows) == 0:
+                continue
+            union = pa[rows] | h
+            fit = self._masks_fit(k, grasps[rows], union & free[rows])
+            fit &= self._masks_fit(k, np.full(len(rows), g_s, dtype=np.int64), union & f_s)
+            ok[rows[~fit]] = False
+        return ok
+
+    def _masks_apply(self) -> bool:
+        """Do (grasp vector, entity mask) codes fit in int64 (else the checks run state by state)?"""
+        N, M = self.N, self.M
+        return N + M <= _MASK_BITS and (M + 1) ** N << (N + M) < 1 << 62
+
+    def _region_masks(self, S: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Per state (rows of S): ``here[k]``, the entities in region k as a bit mask (robot i: bit i, object j:
+        bit N + j); the grasp vector's code Σ_i (g_i + 1)(M + 1)^i; the mask of the entities that count alone
+        under the state's grasps (free robots and every object)."""
+        N, M, K = self.N, self.M, self.K
+        n = N + M
+        dtype = np.int16 if n < 16 else np.int32 if n < 32 else np.int64
+        pow_e = (np.int64(1) << np.arange(n, dtype=np.int64)).astype(dtype)
+        here = (S[None, :, :n] == np.arange(K)[:, None, None]) @ pow_e
+        G = S[:, n:]
+        grasps = (G.astype(np.int64) + 1) @ (np.int64(M + 1) ** np.arange(N, dtype=np.int64))
+        objects = int(pow_e[N:].astype(np.int64).sum()) if M else 0
+        free = (((G < 0) @ pow_e[:N].astype(np.int64)) | objects).astype(dtype)
+        return here, grasps, free
+
+    def _masks_fit(self, k: int, grasps: np.ndarray, masks: np.ndarray) -> np.ndarray:
+        """P_s for region k of the entities in ``masks[r]`` (bit i: free robot i; bit N + j: object j with its
+        team under the grasps coded ``grasps[r]``, see :meth:`_region_masks`); an empty mask fits.  Decided
+        once per distinct code and remembered (a table over all codes when it is small)."""
+        n = self.N + self.M
+        code = (grasps.astype(np.int64) << n) | masks
+        space = (self.M + 1) ** self.N << n
+        if space <= _DENSE_CODES:
+            table = self._fit_tables.get(k)
+            if table is None:
+                table = self._fit_tables[k] = np.full(space, -1, dtype=np.int8)
+            got = table[code]
+            unknown = np.flatnonzero(got < 0)
+            if len(unknown):
+                seen = np.zeros(space, dtype=bool)
+                seen[code[unknown]] = True
+                new = np.flatnonzero(seen)
+                table[new] = self._codes_fit(k, new)
+                got = table[code]
+            return got.astype(bool)
+        codes, inv = np.unique(code, return_inverse=True)
+        memo = self._fit_memo.setdefault(k, {})
+        got = np.array([memo.get(c, -1) for c in codes.tolist()], dtype=np.int8)
+        miss = np.flatnonzero(got < 0)
+        if len(miss):
+            got[miss] = self._codes_fit(k, codes[miss])
+            memo.update(zip(codes[miss].tolist(), got[miss].tolist()))
+        return got[inv.ravel()].astype(bool)
+
+    def _codes_fit(self, k: int, codes: np.ndarray) -> np.ndarray:
+        """P_s for region k of each code ``grasps << (N + M) | mask`` (:meth:`_masks_fit`): the entities' radii
+        as sorted ids of distinct radius values, P_s decided once per distinct multiset."""
+        N, M = self.N, self.M
+        n = N + M
+        g, m = codes >> n, codes & ((1 << n) - 1)
+        ids = np.zeros((len(codes), n), dtype=np.int64)
+        for i in range(N):
+            ids[:, i] = np.where(m >> i & 1, self._radius_id(self.robot_radius[i]), 0)
+        G = np.empty((len(codes), N), dtype=np.int64)
+        for i in range(N):
+            g, d = np.divmod(g, M + 1)
+            G[:, i] = d - 1
+        for j in range(M):
+            team = (G == j) @ (np.int64(1) << np.arange(N, dtype=np.int64))
+            teams, inv = np.unique(team, return_inverse=True)
+            rid = np.array([self._radius_id(self.covering_radius(j, tuple(i for i in range(N) if t >> i & 1))
+                                            if t else self.object_radius[j]) for t in teams.tolist()], dtype=np.int64)
+            ids[:, N + j] = np.where(m >> (N + j) & 1, rid[inv.ravel()], 0)
+        ids.sort(axis=1)
+        values = self._radius_values
+        if len(values) ** n < 1 << 62:
+            _, first, inv = np.unique(ids @ (np.int64(len(values)) ** np.arange(n, dtype=np.int64)),
+                                      return_index=True, return_inverse=True)
+            rows = ids[first]
+        else:
+            rows, inv = np.unique(ids, axis=0, return_inverse=True)
+        fit = np.array([not any(row) or self.region_fits(k, [values[x] for x in row if x]) for row in rows.tolist()],
+                       dtype=bool)
+        return fit[inv.ravel()]
+
+    def _radius_id(self, r: float) -> int:
+        """A number ≥ 1 per distinct radius value (exact float equality: same value, same P_s key)."""
+        x = self._radius_ids.get(r)
+        if x is None:
+            x = self._radius_ids[r] = len(self._radius_values)
+            self._radius_values.append(r)
+        return x
+
+    def _mask_fits(self, k: int, G: np.ndarray, mask: int) -> bool:
+        """P_s for region k of the entities in ``mask`` (bit i: free robot i; bit N + j: object j with its
+        team under the grasps G)."""
         N = self.N
-        radii = [self.robot_radius[i] for i in range(N) if code >> i & 1]
-        shift = N
+        radii = [self.robot_radius[i] for i in range(N) if mask >> i & 1]
         for j in range(self.M):
-            if code >> shift & 1:
-                team = tuple(i for i in range(N) if code >> (shift + 1 + i) & 1)
+            if mask >> (N + j) & 1:
+                team = tuple(i for i in range(N) if G[i] == j)
                 radii.append(self.covering_radius(j, team) if team else self.object_radius[j])
-            shift += N + 1
         return self.region_fits(k, radii)
 
     # ------------------------------------------------------------------ labels and cost
@@ -644,9 +779,52 @@ class TransitionSystem:
 
         Breadth-first over integer state codes (:meth:`encode`): the successor codes of a state are the
         sums of per-robot code deltas over the product of its option lists (:meth:`option_keys`), so no
-        state tuple is built per transition; only codes never seen before are decoded and checked.
+        state tuple is built per transition; only codes never seen before are decoded and checked.  Batches
+        of states are expanded at once with numpy (:meth:`_expand`) when the codes fit in 64 bits.
         """
         t0 = time.perf_counter()
+        N, M, K = self.N, self.M, self.K
+        if K ** (N + M) * (M + 1) ** N < 1 << 62 and self._masks_apply():
+            arr, counts, tg, costs = self._explore(max_states, progress, max_transitions)
+        else:
+            arr, counts, tg, costs = self._explore_codes(max_states, progress, max_transitions)
+        n_states = len(arr)
+        keep = tg >= 0
+        src_all = np.repeat(np.arange(n_states, dtype=np.int64), counts)
+        cand = np.flatnonzero(keep)
+        fit = self.steps_fit_index(arr, src_all[cand], tg[cand])
+        keep[cand] = fit
+        src, tg = src_all[keep], tg[keep].astype(np.int64)
+        if costs is not None:
+            costs = costs[keep]
+        ip = np.zeros(n_states + 1, dtype=np.int64)
+        np.cumsum(np.bincount(src, minlength=n_states), out=ip[1:])
+        if not fit.all():
+            # steps that do not fit may have been the only way to some states: keep what the initial state reaches
+            g = csr_matrix((np.ones(len(src), dtype=np.int8), tg, ip), shape=(n_states, n_states))
+            order = np.sort(breadth_first_order(g, 0, directed=True, return_predecessors=False))
+        else:  # every state was found along kept steps
+            order = np.arange(n_states)
+        if len(order) < n_states:
+            new = np.full(n_states, -1, dtype=np.int64)
+            new[order] = np.arange(len(order))
+            ok = (new[src] >= 0) & (new[tg] >= 0)
+            src, tg = new[src[ok]], new[tg[ok]]
+            if costs is not None:
+                costs = costs[ok]
+            arr = arr[order]
+            n_states = len(order)
+            ip = np.zeros(n_states + 1, dtype=np.int64)
+            np.cumsum(np.bincount(src, minlength=n_states), out=ip[1:])
+        src, tg = src.astype(np.int32), tg.astype(np.int32)
+        if costs is None:
+            costs = self._edge_costs(arr, src, tg)
+        return ExplicitTS(self, arr, ip, tg, costs, time.perf_counter() - t0)
+
+    def _explore_codes(self, max_states: int | None, progress,
+                       max_transitions: int | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray, None]:
+        """Breadth-first search one state at a time on Python integer codes: (states, candidates per state,
+        candidate targets (−1: invalid state), None)."""
         N, M = self.N, self.M
         w_r, w_o, w_g = self._radix()
         init = self.encode(self.initial)
@@ -689,28 +867,218 @@ class TransitionSystem:
             if progress is not None and u % 1000 == 0:
                 progress(u, len(states))
         arr = np.array(states, dtype=np.int16).reshape(len(states), 2 * N + M)
-        tg = np.frombuffer(targets, dtype=np.int32) if len(targets) else np.zeros(0, np.int32)
-        keep = tg >= 0
-        src_all = np.repeat(np.arange(len(states), dtype=np.int64), np.diff(np.array(ends, dtype=np.int64)))
-        cand = np.flatnonzero(keep)
-        keep[cand] = self.steps_fit(arr[src_all[cand]], arr[tg[cand]])
-        src, tg = src_all[keep], tg[keep].astype(np.int64)
-        # steps that do not fit may have been the only way to some states: keep what the initial state reaches
-        g = csr_matrix((np.ones(len(src), dtype=np.int8), (src, tg)), shape=(len(states), len(states)))
-        order = np.sort(breadth_first_order(g, 0, directed=True, return_predecessors=False))
-        if len(order) < len(states):
-            new = np.full(len(states), -1, dtype=np.int64)
-            new[order] = np.arange(len(order))
-            ok = (new[src] >= 0) & (new[tg] >= 0)
-            src, tg = new[src[ok]], new[tg[ok]]
-            states = [states[k] for k in order]
-            arr = arr[order]
-        ip = np.zeros(len(states) + 1, dtype=np.int64)
-        np.cumsum(np.bincount(src, minlength=len(states)), out=ip[1:])
-        src, tg = src.astype(np.int32), tg.astype(np.int32)
-        costs = self._edge_costs(arr, src, tg)
-        index_by_state = {s: k for k, s in enumerate(states)}
-        return ExplicitTS(self, arr, index_by_state, ip, tg, costs, time.perf_counter() - t0)
+        tg = np.frombuffer(targets, dtype=np.int32).copy() if len(targets) else np.zeros(0, np.int32)
+        return arr, np.diff(np.array(ends, dtype=np.int64)), tg, None
+
+    #: States expanded together by :meth:`_explore`.
+    batch = 2048
+
+    def _explore(self, max_states: int | None, progress,
+                 max_transitions: int | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """:meth:`_explore_codes` on numpy int64 codes, a batch of known states at a time: new states are
+        numbered in the order the one-at-a-time search meets them (first occurrence in the batch's candidates,
+        sources in order), so both give the same graph; also returns every candidate's cost χ."""
+        N, M, K = self.N, self.M, self.K
+        width = 2 * N + M
+        w_r, w_o, w_g = self._radix()
+        space = K ** (N + M) * (M + 1) ** N
+        init = self.encode(self.initial)
+        dense = space <= _DENSE_INDEX
+        if dense:
+            index = np.full(space, -2, dtype=np.int32)  # -2 unseen, -1 invalid, else the state's number
+            index[init] = 0
+        else:
+            known, known_ids = np.array([init], dtype=np.int64), np.zeros(1, dtype=np.int64)
+
+        def lookup(code: np.ndarray) -> np.ndarray:
+            if dense:
+                return index[code].astype(np.int64)
+            pos = np.minimum(np.searchsorted(known, code), len(known) - 1)
+            return np.where(known[pos] == code, known_ids[pos], -2)
+
+        tables = self._expand_tables()
+        states = np.zeros((1024, width), dtype=np.int64)
+        states[0] = self.initial
+        n_states = 1
+        parts: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
+        lo = n_valid = 0
+        while lo < n_states:
+            hi = min(lo + self.batch, n_states)
+            per, code, cost = self._expand(states[lo:hi], tables)
+            found = lookup(code)
+            unseen = np.flatnonzero(found == -2)
+            if len(unseen):
+                codes, first = np.unique(code[unseen], return_index=True)
+                codes = codes[np.argsort(first, kind="stable")]
+                T = self._decode_codes(codes)
+                ok = self._states_fit(T)
+                nv = int(ok.sum())
+                if max_states is not None and n_states + nv > max_states:
+                    raise RuntimeError(f"more than {max_states} reachable states")
+                ids = np.full(len(codes), -1, dtype=np.int64)
+                ids[ok] = np.arange(n_states, n_states + nv)
+                while n_states + nv > len(states):
+                    states = np.concatenate([states, np.zeros_like(states)])
+                states[n_states:n_states + nv] = T[ok]
+                n_states += nv
+                if dense:
+                    index[codes] = ids
+                else:
+                    allc, allid = np.concatenate([known, codes]), np.concatenate([known_ids, ids])
+                    o = np.argsort(allc, kind="stable")
+                    known, known_ids = allc[o], allid[o]
+                found[unseen] = lookup(code[unseen])
+            parts.append((per, found.astype(np.int32), cost))
+            n_valid += int((found >= 0).sum())
+            if max_transitions is not None and n_valid > max_transitions:
+                raise RuntimeError(f"more than {max_transitions} transitions")
+            lo = hi
+            if progress is not None:
+                progress(lo, n_states)
+        counts = np.concatenate([p[0] for p in parts])
+        tg = np.concatenate([p[1] for p in parts])
+        costs = np.concatenate([p[2] for p in parts])
+        return states[:n_states].astype(np.int16), counts, tg, costs
+
+    def _decode_codes(self, codes: np.ndarray) -> np.ndarray:
+        """:meth:`decode` of an array of codes (one state per row)."""
+        N, M, K = self.N, self.M, self.K
+        out = np.empty((len(codes), 2 * N + M), dtype=np.int64)
+        c = codes
+        for e in range(N + M):
+            c, out[:, e] = np.divmod(c, K)
+        for i in range(N):
+            c, d = np.divmod(c, M + 1)
+            out[:, N + M + i] = d - 1
+        return out
+
+    def _states_fit(self, S: np.ndarray) -> np.ndarray:
+        """:meth:`_regions_fit` of every row of S (co-located states)."""
+        here, grasps, free = self._region_masks(S)
+        ok = np.ones(len(S), dtype=bool)
+        for k in range(self.K):
+            ok &= self._masks_fit(k, grasps, here[k] & free)
+        return ok
+
+    def _expand_tables(self) -> dict:
+        """Per robot and region, the codes and costs of its navigation options (staying first), for
+        :meth:`_expand`."""
+        N, K = self.N, self.K
+        w_r, w_o, w_g = self._radix()
+        lists = [[[r] + [k for k in range(K) if k != r and self.connections(self.robot_radius[i])[r, k]]
+                  for r in range(K)] for i in range(N)]
+        width = max((len(x) for row in lists for x in row), default=1)
+        code = np.zeros((N, K, width), dtype=np.int64)
+        cost = np.zeros((N, K, width))
+        length = np.zeros((N, K), dtype=np.int64)
+        for i in range(N):
+            for r in range(K):
+                ks = lists[i][r]
+                code[i, r, :len(ks)] = np.array(ks, dtype=np.int64) * w_r[i]
+                cost[i, r, :len(ks)] = self.dist[r, ks]
+                length[i, r] = len(ks)
+        return {"w_r": np.array(w_r, dtype=np.int64), "w_o": np.array(w_o, dtype=np.int64),
+                "w_g": np.array(w_g, dtype=np.int64), "nav_code": code, "nav_cost": cost, "nav_len": length,
+                "nav_width": width, "carry": {}}
+
+    def _expand(self, X: np.ndarray, tables: dict) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The candidate successors of the states X (rows) in :meth:`option_keys` × :meth:`option_pairs`
+        order: (candidates per state, their codes, their costs χ)."""
+        N, M, K = self.N, self.M, self.K
+        w_r, w_o, w_g = tables["w_r"], tables["w_o"], tables["w_g"]
+        gc = self.grasp_cost
+        b = len(X)
+        R, O, G = X[:, :N], X[:, N:N + M], X[:, N + M:]
+        # objects: stay, or move with a powerful enough team to a region connected for its covering radius
+        power = np.zeros((b, M))
+        team = np.zeros((b, M), dtype=np.int64)
+        for i in range(N):
+            h = np.flatnonzero(G[:, i] >= 0)
+            power[h, G[h, i]] += self.power[i]
+            team[h, G[h, i]] |= 1 << i
+        opts = np.zeros((b, M, K), dtype=np.int64)
+        opts[:, :, 0] = O
+        nopt = np.ones((b, M), dtype=np.int64)
+        movable = (power > 0) & (power >= np.array(self.required_power, dtype=float))
+        carry = tables["carry"]
+        for j in range(M):
+            h = np.flatnonzero(movable[:, j])
+            if len(h) == 0:
+                continue
+            keys, inv = np.unique(team[h, j] * K + O[h, j], return_inverse=True)
+            inv = inv.ravel()
+            for u, key in enumerate(keys.tolist()):
+                dests = carry.get((j, key))
+                if dests is None:
+                    members, o = divmod(key, K)
+                    C = self.connections(self.covering_radius(j, tuple(i for i in range(N) if members >> i & 1)))
+                    dests = carry[(j, key)] = [o] + [k for k in range(K) if k != o and C[o, k]]
+                sel = h[inv == u]
+                opts[sel, j, :len(dests)] = dests
+                nopt[sel, j] = len(dests)
+        # combinations of object destinations, the first object's slowest
+        ncomb = nopt.prod(axis=1)
+        cs = np.repeat(np.arange(b), ncomb)
+        rest = np.arange(len(cs)) - np.repeat(np.cumsum(ncomb) - ncomb, ncomb)
+        dests = np.empty((len(cs), M), dtype=np.int64)
+        for j in reversed(range(M)):
+            nj = nopt[cs, j]
+            rest, d = np.divmod(rest, nj)
+            dests[:, j] = opts[cs, j, d]
+        base = dests @ w_o if M else np.zeros(len(cs), dtype=np.int64)
+        Rc, Oc, Gc = R[cs], O[cs], G[cs]
+        stay = dests == Oc
+        # every robot's options: code deltas and costs in option_pairs order
+        nav_code, nav_cost, nav_len, nav_width = tables["nav_code"], tables["nav_cost"], tables["nav_len"], \
+            tables["nav_width"]
+        W = max(nav_width + M, 2)
+        C = len(cs)
+        ocode = np.zeros((C, N, W), dtype=np.int64)
+        ocost = np.zeros((C, N, W))
+        cnt = np.zeros((C, N), dtype=np.int64)
+        for i in range(N):
+            g, r = Gc[:, i], Rc[:, i]
+            f = np.flatnonzero(g < 0)
+            rf = r[f]
+            ocode[f, i, :nav_width] = nav_code[i, rf]
+            ocost[f, i, :nav_width] = nav_cost[i, rf]
+            pos = nav_len[i, rf]
+            for j in range(M):
+                c = stay[f, j] & (Oc[f, j] == rf)
+                fc, pc = f[c], pos[c]
+                ocode[fc, i, pc] = rf[c] * w_r[i] + (j + 1) * w_g[i]
+                ocost[fc, i, pc] = gc
+                pos = pos + c
+            cnt[f, i] = pos
+            h = np.flatnonzero(g >= 0)
+            gh, rh = g[h], r[h]
+            dg = dests[h, gh]
+            mv = dg != Oc[h, gh]
+            hm, hs = h[mv], h[~mv]
+            ocode[hm, i, 0] = dg[mv] * w_r[i] + (gh[mv] + 1) * w_g[i]
+            ocost[hm, i, 0] = self.dist[rh[mv], dg[mv]]
+            cnt[hm, i] = 1
+            ocode[hs, i, 0] = rh[~mv] * w_r[i] + (gh[~mv] + 1) * w_g[i]
+            ocode[hs, i, 1] = rh[~mv] * w_r[i]
+            ocost[hs, i, 1] = gc
+            cnt[hs, i] = 2
+        # the product of the robots' options, the first robot's slowest
+        ncand = cnt.prod(axis=1)
+        cc = np.repeat(np.arange(C), ncand)
+        rest = np.arange(len(cc)) - np.repeat(np.cumsum(ncand) - ncand, ncand)
+        at = [None] * N
+        for i in reversed(range(N)):
+            ni = cnt[cc, i]
+            rest, d = np.divmod(rest, ni)
+            at[i] = (cc * N + i) * W + d
+        code = base[cc]
+        cost = np.zeros(len(cc))
+        flat_code, flat_cost = ocode.reshape(-1), ocost.reshape(-1)
+        for i in range(N):
+            code += flat_code[at[i]]
+            cost += flat_cost[at[i]]
+        per = np.add.reduceat(ncand, np.cumsum(ncomb) - ncomb) if b else np.zeros(0, dtype=np.int64)
+        return per, code, cost
 
     def _edge_costs(self, arr: np.ndarray, src: np.ndarray, dst: np.ndarray) -> np.ndarray:
         N, M, K = self.N, self.M, self.K
@@ -775,11 +1143,18 @@ class ExplicitTS:
 
     ts: TransitionSystem
     states: np.ndarray
-    index: dict
     indptr: np.ndarray
     targets: np.ndarray
     costs: np.ndarray
     build_seconds: float
+    _index: dict | None = field(default=None, repr=False, compare=False)
+
+    @property
+    def index(self) -> dict:
+        """state tuple -> state number."""
+        if self._index is None:
+            self._index = {s: k for k, s in enumerate(map(tuple, self.states.tolist()))}
+        return self._index
 
     @property
     def num_states(self) -> int:
@@ -807,8 +1182,8 @@ class ExplicitTS:
         src = np.repeat(np.arange(self.num_states), np.diff(self.indptr))
         keep = np.array([(int(u), int(v)) not in drop for u, v in zip(src, self.targets)], dtype=bool)
         indptr = np.concatenate([[0], np.cumsum(np.bincount(src[keep], minlength=self.num_states))])
-        return ExplicitTS(self.ts, self.states, self.index, indptr.astype(self.indptr.dtype), self.targets[keep],
-                          self.costs[keep], self.build_seconds)
+        return ExplicitTS(self.ts, self.states, indptr.astype(self.indptr.dtype), self.targets[keep],
+                          self.costs[keep], self.build_seconds, self._index)
 
     def label_masks(self) -> np.ndarray:
         """L(s) bitmask for every state (Python ints may exceed 64 bits: object array)."""

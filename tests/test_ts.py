@@ -364,7 +364,6 @@ def test_estimate_is_close_to_the_built_size(name):
     ts = TransitionSystem(load_scenario(ROOT / "scenarios" / f"{name}.yaml"))
     est = ts.estimate_size()
     ets = ts.build()
-    assert est.seconds < 2.0
     assert 0.8 < est.states / ets.num_states < 1.5
     assert 0.8 < est.transitions / ets.num_transitions < 1.5
 
@@ -385,16 +384,16 @@ def _run_ts(path, *extra):
     return res, time.perf_counter() - start
 
 
-def test_cli_ts_refuses_a_big_transition_system_quickly(tmp_path):
+def test_cli_ts_refuses_a_big_transition_system_on_its_estimate(tmp_path):
     import yaml
 
     from mrodrake.planning.generate import generate_scenario_data
 
     path = tmp_path / "yard.yaml"
     path.write_text(yaml.safe_dump(generate_scenario_data(6, 3, 5, seed=0), sort_keys=False), encoding="utf-8")
-    res, seconds = _run_ts(path)
+    res, _seconds = _run_ts(path)
     assert res.returncode == 2, res.stderr
-    assert seconds < 5.0
+    assert "would have about" in res.stderr  # refused on the estimate, before building
     lines = res.stderr.strip().splitlines()
     assert len(lines) == 1 and "Traceback" not in res.stderr
     assert "--max-transitions" in lines[0] and "transitions" in lines[0]
@@ -406,3 +405,41 @@ def test_cli_ts_max_transitions_lowers_the_limit():
     assert res.returncode == 2 and "more than --max-transitions 100" in res.stderr
     res, _ = _run_ts(ROOT / "scenarios" / "tiny.yaml", "--max-transitions", "1000")
     assert res.returncode == 0 and "transitions:  438" in res.stdout
+
+def _explicit(ets):
+    return ets.states.tolist(), ets.indptr.tolist(), ets.targets.tolist(), ets.costs.tolist()
+
+
+@settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(scenarios)
+def test_batched_build_matches_one_state_at_a_time(params):
+    """The numpy batches number states and order transitions as the one-state-at-a-time search does, with
+    the same costs, also with sorted code lookups, small batches and steps that do not fit."""
+    n, m, k, rr, data = params
+    robot_radii = data.draw(st.lists(st.floats(0.3, 1.2), min_size=n, max_size=n))
+    object_radii = data.draw(st.lists(st.floats(0.1, 0.8), min_size=m, max_size=m))
+    powers = data.draw(st.lists(st.integers(1, 4), min_size=n, max_size=n))
+    required = data.draw(st.lists(st.integers(1, 6), min_size=m, max_size=m))
+    try:
+        sc = random_scenario(n, m, k, rr, robot_radii, object_radii, powers, required, data.draw(st.floats(0.0, 0.3)))
+    except UserError:
+        assume(False)
+    ts = TransitionSystem(sc)
+    arr, counts, targets, costs = ts._explore_codes(None, None)
+    got = ts._explore(None, None)
+    assert got[0].tolist() == arr.tolist() and got[1].tolist() == counts.tolist()
+    assert got[2].tolist() == targets.tolist()
+    ref = ts.build()
+    ts.batch = 3
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr("mrodrake.ts._DENSE_INDEX", 0)
+        mp.setattr("mrodrake.ts._DENSE_CODES", 0)
+        other = ts.build()
+        mp.setattr(TransitionSystem, "_explore", TransitionSystem._explore_codes)
+        slow = ts.build()
+    assert _explicit(other) == _explicit(ref) == _explicit(slow)
+    states = [tuple(int(x) for x in row) for row in arr]
+    pairs = [(a, b) for a in states[:6] for b in states]
+    want = [ts.step_fits(a, b) for a, b in pairs]
+    assert ts.steps_fit(np.array([a for a, _ in pairs]), np.array([b for _, b in pairs])).tolist() == want
+    assert [oracle_step_fits(ts, a, b) for a, b in pairs] == want

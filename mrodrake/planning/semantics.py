@@ -32,8 +32,9 @@ cycle) must satisfy the formula, i.e. the word graph times an NBA of ¬φ has no
 
 from __future__ import annotations
 
+import math
 from collections.abc import Iterator, Sequence
-from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 from scipy.sparse import csr_matrix
@@ -64,8 +65,7 @@ def region_changing(actions: Sequence[Action]) -> list[Action]:
     return [a for a in actions if isinstance(a, (Navigate, Transport))]
 
 
-@dataclass(frozen=True)
-class Crossing:
+class Crossing(NamedTuple):
     """One body of a region-changing action: the AP_φ bit its leaving clears and the bit its entering sets
     (−1 where AP_φ does not mention the source / destination proposition), and the bodies of the same
     action that must have left the source before this one can enter the destination (:func:`entry_order`)."""
@@ -144,6 +144,11 @@ def _events(cross: Sequence[Crossing]) -> tuple[list[tuple[int, int]], list[int]
     return events, pre
 
 
+def _prefixes(n: int) -> int:
+    """Order prefixes of n actions, the empty one included: Σ_k n!/(n−k)!."""
+    return sum(math.perm(n, k) for k in range(n + 1))
+
+
 def _apply(mask: int, event: tuple[int, int]) -> int:
     bit, sign = event
     return mask | (1 << bit) if sign > 0 else mask & ~(1 << bit)
@@ -188,6 +193,12 @@ class GuardTable:
             used = 0
             for p, n, _ in flat:
                 used |= p | n
+            if used.bit_length() < 64 and self.nba.num_states < 64:  # cubes and letters as int64 words
+                table = (used, np.array([p for p, _, _ in flat], dtype=np.uint64),
+                         np.array([n for _, n, _ in flat], dtype=np.uint64),
+                         np.array([1 << d for _, _, d in flat], dtype=np.uint64))
+                self._tables[q] = table
+                return table
             bits = np.array([b for b in range(used.bit_length()) if used >> b & 1], dtype=np.int64)
             nbytes = (used.bit_length() + 7) // 8
             words = (len(bits) + 63) // 64
@@ -211,6 +222,11 @@ class GuardTable:
         table = self._table(q)
         if table is None:
             return sum(1 << d for d in self.nba.successors(q, letter))
+        if len(table) == 4:
+            used, P, N, dbits = table
+            L = np.uint64(letter & used)
+            ok = ((P & ~L) == 0) & ((N & L) == 0)
+            return int(np.bitwise_or.reduce(dbits[ok])) if ok.any() else 0
         used, nbytes, bits, words, P, N, dst = table
         L = self._pack(letter & used, nbytes, bits, words)
         if words == 1:
@@ -246,10 +262,17 @@ class ExecutedWords:
         self._succ_bits: dict[int, list[int]] = {}
         self._delta: dict[tuple[int, int], int] = {}
         self._lattice: dict[tuple, tuple[frozenset, int]] = {}
+        self._cross_ids: dict[tuple, int] = {}
+        self._lattices: list[list[tuple[int, int, int, tuple[int, ...]]]] = []
         self._step: dict[tuple, list[dict[int, tuple[int, ...]]]] = {}
         self._matrix: dict[tuple, np.ndarray] = {}
         self._label_matrix: dict[int, np.ndarray] = {}
         self._some: dict[tuple, tuple[np.ndarray, np.ndarray]] = {}
+        self._cross: dict[Action, tuple[Crossing, ...]] = {}
+        self._keys: dict[tuple[State, State], tuple[int, tuple, tuple[Action, ...]]] = {}
+        self._sigs: dict[tuple[State, State], tuple[int, tuple]] = {}
+        self._move_cross: dict[tuple, tuple[Crossing, ...]] = {}
+        self._rows: dict[tuple, np.ndarray] = {}
         self._acc = sum(1 << f for f in nba.accepting)
 
     # ------------------------------------------------------------------------------------ NBA on subsets
@@ -274,34 +297,98 @@ class ExecutedWords:
         return out
 
     # ------------------------------------------------------------------------------------ one step
+    def crossings(self, a: Action) -> tuple[Crossing, ...]:
+        """:func:`crossings` of action ``a`` for this AP_φ (cached)."""
+        c = self._cross.get(a)
+        if c is None:
+            c = self._cross[a] = crossings(self.ts, self.relevant, a)
+        return c
+
     def key(self, s: State, t: State, actions: Sequence[Action] | None = None) -> tuple[int, tuple, list[Action]]:
         """(projected source label, crossing signature of the visible actions, those actions) of s → t."""
+        if actions is None:
+            hit = self._keys.get((s, t))
+            if hit is not None:
+                return hit[0], hit[1], list(hit[2])
         acts = region_changing(self.ts.actions(s, t) if actions is None else actions)
-        vis = [(a, c) for a in acts if (c := crossings(self.ts, self.relevant, a))]
-        return self.ts.label_mask(s) & self.relevant, tuple(c for _, c in vis), [a for a, _ in vis]
+        cross = self.crossings
+        vis = [(a, c) for a in acts if (c := cross(a))]
+        out = self.ts.label_mask(s) & self.relevant, tuple(c for _, c in vis), [a for a, _ in vis]
+        if actions is None:
+            self._keys[(s, t)] = (out[0], out[1], tuple(out[2]))
+        return out
+
+    def signature(self, s: State, t: State) -> tuple[int, tuple]:
+        """The first two of :meth:`key` (cached), read off the two states without building the actions
+        (their order as in :meth:`~mrodrake.ts.TransitionSystem.actions`: transports, then navigations)."""
+        hit = self._sigs.get((s, t))
+        if hit is not None:
+            return hit
+        N, M = self.ts.N, self.ts.M
+        moves = []
+        for j in range(M):
+            if s[N + j] != t[N + j]:
+                team = tuple(i for i in range(N) if s[N + M + i] == j)
+                moves.append(("T", j, team, s[N + j], t[N + j]))
+        for i in range(N):
+            if s[N + M + i] < 0 and t[N + M + i] < 0 and s[i] != t[i]:
+                moves.append(("N", i, s[i], t[i]))
+        sig = []
+        for m in moves:
+            c = self._move_cross.get(m)
+            if c is None:
+                a = Transport(m[1], m[2], m[3], m[4]) if m[0] == "T" else Navigate(m[1], m[2], m[3])
+                c = self._move_cross[m] = self.crossings(a)
+            if c:
+                sig.append(c)
+        out = self._sigs[(s, t)] = (self.ts.label_mask(s) & self.relevant, tuple(sig))
+        return out
+
+    def _cross_id(self, cross: tuple) -> int:
+        """A small integer naming one action's crossings, with its lattice precomputed: per reachable downset D
+        of crossing events (in increasing order) the bits its events clear and set and the downsets one event
+        larger (event bits are distinct, so the label after D does not depend on the events' order)."""
+        cid = self._cross_ids.get(cross)
+        if cid is None:
+            events, pre = _events(cross)
+            n = len(events)
+            nodes, seen = [], {0}
+            for D in range(1 << n):
+                if D not in seen:
+                    continue
+                clear = sum(1 << b for i, (b, sign) in enumerate(events) if D >> i & 1 and sign < 0)
+                put = sum(1 << b for i, (b, sign) in enumerate(events) if D >> i & 1 and sign > 0)
+                succ = tuple(D | 1 << i for i in range(n) if not D >> i & 1 and D & pre[i] == pre[i])
+                seen.update(succ)
+                nodes.append((D, ~clear, put, succ))
+            cid = self._cross_ids[cross] = len(self._lattices)
+            self._lattices.append(nodes)
+        return cid
 
     def _after_action(self, F: frozenset, mask: int, cross: tuple) -> tuple[frozenset, int]:
         """The family of subsets after one action's crossings, over all their interleavings, and the mask."""
-        key = (F, mask, cross)
+        return self._after(F, mask, self._cross_id(cross))
+
+    def _after(self, F: frozenset, mask: int, cid: int) -> tuple[frozenset, int]:
+        key = (F, mask, cid)
         hit = self._lattice.get(key)
         if hit is not None:
             return hit
-        events, pre = _events(cross)
-        n = len(events)
-        fam: dict[int, set] = {0: set(F)}
-        masks = {0: mask}
-        for D in range(1 << n):
-            if D not in fam:
-                continue
-            letter = masks[D]
-            images = {self.delta(S, letter) for S in fam[D]}
-            for i in range(n):
-                if not D >> i & 1 and D & pre[i] == pre[i]:
-                    D2 = D | 1 << i
-                    fam.setdefault(D2, set()).update(images)
-                    masks[D2] = _apply(letter, events[i])
-        full = (1 << n) - 1
-        out = (frozenset(fam[full]), masks[full])
+        delta, known = self.delta, self._delta
+        fam: dict[int, set] = {0: F}
+        for D, keep, put, succ in self._lattices[cid]:
+            letter = mask & keep | put
+            images = set()
+            for S in fam[D]:
+                x = known.get((S, letter))
+                images.add(delta(S, letter) if x is None else x)
+            for D2 in succ:
+                got = fam.get(D2)
+                if got is None:
+                    fam[D2] = set(images)
+                else:
+                    got.update(images)
+        out = (frozenset(fam[D]), letter)
         self._lattice[key] = out
         return out
 
@@ -313,6 +400,30 @@ class ExecutedWords:
         used (sound, possibly incomplete)."""
         out: dict[int, tuple[int, ...]] = {}
         n = len(sig)
+        after, known, ids = self._after, self._lattice, [self._cross_id(c) for c in sig]
+        if math.factorial(n) <= self.max_orders and _prefixes(n) <= self.max_nodes:
+            # the budget cannot run out: depth first over the orders, lexicographic
+            stack = [(frozenset([1 << q]), mask, (1 << n) - 1, ())]
+            while stack:
+                F, m, left, prefix = stack.pop()
+                if left == 0:
+                    common = -1
+                    for S in F:
+                        common &= S
+                    d = 0
+                    while common > 0:
+                        if common & 1:
+                            out.setdefault(d, prefix)
+                        common >>= 1
+                        d += 1
+                    continue
+                for i in range(n - 1, -1, -1):
+                    if left >> i & 1:
+                        hit = known.get((F, m, ids[i]))
+                        F2, m2 = after(F, m, ids[i]) if hit is None else hit
+                        if 0 not in F2:
+                            stack.append((F2, m2, left & ~(1 << i), prefix + (i,)))
+            return out
         budget = [self.max_orders, self.max_nodes]
 
         def rec(F: frozenset, m: int, left: int, prefix: tuple[int, ...]) -> None:
@@ -333,7 +444,8 @@ class ExecutedWords:
                 return
             for i in range(n):
                 if left >> i & 1:
-                    F2, m2 = self._after_action(F, m, sig[i])
+                    hit = known.get((F, m, ids[i]))
+                    F2, m2 = after(F, m, ids[i]) if hit is None else hit
                     if 0 not in F2:
                         rec(F2, m2, left & ~(1 << i), prefix + (i,))
 
@@ -366,18 +478,26 @@ class ExecutedWords:
 
     def matrix(self, s: State, t: State) -> np.ndarray:
         """``M[q, q']``: is (s, q) → (t, q') a product edge (s → t assumed a TS transition)?"""
-        mask, sig, _ = self.key(s, t)
+        mask, sig = self.signature(s, t)
         return self.matrix_for(mask, sig)
 
     def rows(self, s: State, t: State, qs) -> np.ndarray:
         """``M[qs]`` of :meth:`matrix`, computing only the rows asked for."""
-        mask, sig, _ = self.key(s, t)
+        mask, sig = self.signature(s, t)
         if not sig:
             return self.matrix_for(mask, sig)[qs]
-        out = np.zeros((len(qs), self.Q), dtype=bool)
-        for r, q in enumerate(qs):
-            out[r, list(self._successors_key(int(q), mask, sig))] = True
-        return out
+        return np.array([self._row(int(q), mask, sig) for q in qs], dtype=bool).reshape(len(qs), self.Q)
+
+    def _row(self, q: int, mask: int, sig: tuple) -> np.ndarray:
+        """Row q of :meth:`matrix_for` (cached, read-only)."""
+        key = (q, mask, sig)
+        row = self._rows.get(key)
+        if row is None:
+            row = np.zeros(self.Q, dtype=bool)
+            row[list(self._successors_key(q, mask, sig))] = True
+            row.flags.writeable = False
+            self._rows[key] = row
+        return row
 
     def matrix_for(self, mask: int, sig: tuple) -> np.ndarray:
         key = (mask, sig)
@@ -464,7 +584,7 @@ class ExecutedWords:
 
     def some_matrix(self, s: State, t: State) -> tuple[np.ndarray, np.ndarray]:
         """:meth:`some_matrix_for` of the step s → t."""
-        mask, sig, _ = self.key(s, t)
+        mask, sig = self.signature(s, t)
         return self.some_matrix_for(mask, sig)
 
     def visible(self, X: np.ndarray, Y) -> np.ndarray:
@@ -498,7 +618,7 @@ class ExecutedWords:
         """NBA states (mask) reached from the set S for EVERY interleaving of the step s → t executed in
         ``order`` (intersection over the interleavings)."""
         mask, _, _ = self.key(s, t)
-        vis = [c for a in region_changing(order) if (c := crossings(self.ts, self.relevant, a))]
+        vis = [c for a in region_changing(order) if (c := self.crossings(a))]
         if not vis:
             return self.delta(S, mask)
         F = frozenset([S])
@@ -517,7 +637,7 @@ class ExecutedWords:
     def step_words(self, s: State, t: State, order: Sequence[Action]) -> Iterator[list[int]]:
         """Every word (projected letters) that executing s → t in ``order`` may produce."""
         m0 = self.ts.label_mask(s) & self.relevant
-        vis = [c for a in region_changing(order) if (c := crossings(self.ts, self.relevant, a))]
+        vis = [c for a in region_changing(order) if (c := self.crossings(a))]
         if not vis:
             yield [m0]
             return

@@ -20,7 +20,8 @@ The product is never built.  The algorithm, as implemented here:
    TS successor of ``s`` is sampled toward that cube with probability ``p_new``, else uniformly at
    random (:mod:`~mrodrake.planning.sampler`).  The new TS state is added with every NBA state it can
    take, each with the **cheapest feasible parent** among all tree nodes (a vectorised transition test
-   over all tree states), closed under the free idle step, and then tree nodes at neighbouring TS states
+   over all tree states, once per new TS state and remembered for both ends), closed under the free idle
+   step, and then tree nodes at neighbouring TS states
    are **rewired** through the new nodes when cheaper (the public MATLAB code has rewiring switched
    off; here the cost keeps improving with more iterations).  Re-sampling a known state rewires too.
    The TS relation and χ are symmetric, so one vectorised test gives both parents and rewiring targets.
@@ -90,6 +91,8 @@ class _Transitions:
         self.required = np.array(ts.required_power, dtype=float)
         self.dist = ts.dist
         self.gc = ts.grasp_cost
+        self._robots: dict[tuple[int, int, int], np.ndarray] = {}
+        self._objects: dict[tuple, np.ndarray] = {}
 
     def mask(self, X: np.ndarray, s) -> np.ndarray:
         """``ok[r]``: is ``X[r] → s`` a TS transition?  Rows of X and s are valid states.
@@ -117,45 +120,68 @@ class _Transitions:
             if len(rows):
                 ok[rows] = self.ts.steps_fit(X[rows], s)
             return ok
-        s = np.asarray(s, dtype=np.int64).ravel()
+        s = tuple(int(x) for x in np.asarray(s).ravel())
         XR, XO, XG = X[:, :N], X[:, N : N + M], X[:, N + M :]
-        sR, sO, sG = s[:N], s[N : N + M], s[N + M :]
-        moves = XR != sR
-        moved = XO != sO
-        changed = XG != sG
-        has = sG >= 0
-        col_moved = moved[:, np.maximum(sG, 0)]  # per robot: did s's object of that robot move?
-        bad = changed & ((has & (XG >= 0)) | moves | (has & col_moved))
-        bad |= ~changed & has & (moves != col_moved)
-        free = np.flatnonzero(~has)
-        if free.size:  # robots free in s but grasping in X[r]: the object X[r] holds must stay
-            ext = np.zeros((n, M + 1), dtype=bool)
-            ext[:, :M] = moved
-            sub = XG[:, free].astype(np.int64)
-            idx = np.where(sub >= 0, sub, M) + (np.arange(n, dtype=np.int64) * (M + 1))[:, None]
-            bad[:, free] |= ext.ravel()[idx]
-        ok = ~bad.any(axis=1)
-        power = np.zeros(M)
-        for i in np.flatnonzero(has):
-            power[sG[i]] += self.power[i]
-        weak = power < self.required
-        if weak.any():
-            ok &= ~moved[:, weak].any(axis=1)
-        ts = self.ts
-        for i in np.flatnonzero(~has):  # free robots that navigate: a passage wide enough
-            C = ts.connections(ts.robot_radius[i])
-            rows = np.flatnonzero(ok & moves[:, i])
-            ok[rows] &= C[XR[rows, i], sR[i]]
-        for j in np.flatnonzero(moved.any(axis=0)):  # objects carried by s's team
-            team = tuple(int(i) for i in np.flatnonzero(sG == j))
-            if team:
-                C = ts.connections(ts.covering_radius(int(j), team))
-                rows = np.flatnonzero(ok & moved[:, j])
-                ok[rows] &= C[XO[rows, j], sO[j]]
+        ok = np.ones(n, dtype=bool)
+        for j in range(M):
+            ok &= self._object_table(j, s)[XO[:, j]]
+        moved = np.zeros((n, M + 1), dtype=np.int64)  # last column: no object (grasp -1)
+        moved[:, :M] = XO != np.array(s[N : N + M])
+        rows = np.arange(n)
+        for i in range(N):
+            g = s[N + M + i]
+            xg = XG[:, i]
+            flag = moved[:, g] if g >= 0 else moved[rows, xg]
+            ok &= self._robot_table(i, s[i], g)[(XR[:, i] * (M + 1) + (xg + 1)) * 2 + flag]
         rows = np.flatnonzero(ok)
         if len(rows):
-            ok[rows] = ts.steps_fit(X[rows], s)
+            ok[rows] = self.ts.steps_fit(X[rows], s)
         return ok
+
+    def _robot_table(self, i: int, r: int, g: int) -> np.ndarray:
+        """Robot i's rules for steps between s (robot in region r, grasping g) and any state: a table over
+        (region, grasp + 1, has the object in question moved) of the other state (cached).  The object in
+        question is g when s grasps one, else the one the other state grasps."""
+        key = (i, r, g)
+        T = self._robots.get(key)
+        if T is None:
+            ts, M = self.ts, self.M
+            C = ts.connections(ts.robot_radius[i])
+            T = np.zeros((ts.K, M + 1, 2), dtype=bool)
+            for xr in range(ts.K):
+                for xg in range(-1, M):
+                    for flag in (False, True):
+                        moves, changed = xr != r, xg != g
+                        if g >= 0:
+                            bad = (xg >= 0 or moves or flag) if changed else moves != flag
+                        elif changed:
+                            bad = moves or flag
+                        else:
+                            bad = moves and not C[xr, r]
+                        T[xr, xg + 1, int(flag)] = not bad
+            T = self._robots[key] = T.ravel()
+        return T
+
+    def _object_table(self, j: int, s: State) -> np.ndarray:
+        """``U[k]``: may object j be in region k in the other state of a step with s?  Only where it is in s,
+        or one travel away for s's team if that team is powerful enough (Λ; cached)."""
+        N, M = self.N, self.M
+        team = tuple(i for i in range(N) if s[N + M + i] == j)
+        o = s[N + j]
+        key = (j, o, team)
+        U = self._objects.get(key)
+        if U is None:
+            ts = self.ts
+            power = 0.0
+            for i in team:
+                power += ts.power[i]
+            U = np.zeros(ts.K, dtype=bool)
+            U[o] = True
+            if team and not power < ts.required_power[j]:
+                C = ts.connections(ts.covering_radius(j, team))
+                U |= C[:, o]
+            self._objects[key] = U
+        return U
 
     def cost(self, A: np.ndarray, B: np.ndarray) -> np.ndarray:
         """χ(A[r], B[r]) for all rows (broadcast like :meth:`mask`)."""
@@ -314,8 +340,11 @@ class _Tree:
         self.closers: list[int] = []
         self.frontier: dict[float, list[tuple[float, int]]] = {}  # per bucket: (estimated steps, node)
         self._opts: dict[int, list] = {}
+        self._adj: list[list[list]] = []  # per tree state: neighbours, χ, visibility (symmetric strategies)
         self.iterations = 0
         tid = self._add_state(root)
+        if planner.strategy.symmetric:
+            self._link(tid)
         self._new_node(tid, root_q, -1, 0.0)
 
     # --------------------------------------------------------------------------------- storage
@@ -390,27 +419,40 @@ class _Tree:
         n = len(self.states)
         row = np.asarray(s, dtype=self.X.dtype)[None, :]
         X = self.X[:n]
-        pred = np.flatnonzero(p.trans.mask(X, s))
-        if p.banned and s in p.banned:
-            pred = pred[[self.states[u] not in p.banned[s] for u in pred]].astype(np.int64)
-        if tid is None:
-            tid = self._add_state(s)
+        if p.strategy.symmetric:
+            if tid is None:
+                tid = self._add_state(s)
+                pred, chi, seen = self._link(tid)
+            else:
+                pred, chi, seen = self._adjacent(tid)
+            if p.banned and s in p.banned:
+                keep = np.array([self.states[u] not in p.banned[s] for u in pred], dtype=bool)
+                pred, chi, seen = pred[keep], chi[keep], seen[keep]
+        else:
+            pred = np.flatnonzero(p.trans.mask(X, s))
+            if p.banned and s in p.banned:
+                pred = pred[[self.states[u] not in p.banned[s] for u in pred]].astype(np.int64)
+            if tid is None:
+                tid = self._add_state(s)
+            seen = None
         if len(pred) == 0:
             return
-        chi = p.trans.cost(X[pred], row)
+        if seen is None:
+            chi = p.trans.cost(X[pred], row)
+            seen = p.words.visible(X[pred], s)
         pi, pq = np.nonzero(self.node_of[pred] >= 0)  # candidate parent nodes (tree state, NBA state)
         if len(pi) == 0:  # only states without nodes (reached through banned steps) lead here
             return
         parents = self.node_of[pred[pi], pq]
         base = self.C[parents] + chi[pi]
         T = p.labels.T[self.lid[pred[pi]], pq]  # (candidates, Q): NBA moves of each candidate
-        vis = np.flatnonzero(p.words.visible(X[pred], s))
+        vis = np.flatnonzero(seen)
         if len(vis):  # steps whose crossings the task sees: executed-word moves instead of the label's
             T = T.copy()
-            for k in vis:
-                rows = np.flatnonzero(pi == k)
-                if len(rows):
-                    T[rows] = p.words.rows(self.states[int(pred[k])], s, pq[rows])
+            lo, hi = np.searchsorted(pi, vis, "left").tolist(), np.searchsorted(pi, vis, "right").tolist()
+            for k, a, b in zip(vis.tolist(), lo, hi):  # pi is sorted: the rows of k are pi[a:b]
+                if b > a:
+                    T[a:b] = p.words.rows(self.states[int(pred[k])], s, pq[a:b])
         tot = np.where(T, base[:, None], INF)
         best = tot.argmin(axis=0)
         best_cost = tot[best, np.arange(self.Q)]
@@ -445,23 +487,55 @@ class _Tree:
             if p.banned and s in p.banned:
                 pred = pred[[self.states[u] not in p.banned[s] for u in pred]].astype(np.int64)
             chi = p.trans.cost(row, X[pred])
+            seen = p.words.visible(X[pred], s)
         for v in dict.fromkeys(changed):  # symmetric relation and χ: successors of s are its predecessors
-            self._rewire_from(v, pred, chi)
+            self._rewire_from(v, pred, chi, seen)
 
-    def _rewire_from(self, v: int, succ: np.ndarray, chi: np.ndarray) -> None:
-        """Reparent the nodes at TS states ``succ`` (with costs ``chi`` from v's state) through v."""
+    def _link(self, tid: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The neighbours of the new tree state ``tid`` among the earlier ones (symmetric strategies): the
+        transition test, χ and visibility computed once and remembered for both ends (:meth:`_adjacent`)."""
+        p = self.p
+        s = self.states[tid]
+        rows = self.X[:tid + 1]
+        nb = np.flatnonzero(p.trans.mask(rows, s))
+        chi = p.trans.cost(rows[nb], rows[tid][None, :])
+        seen = p.words.visible(rows[nb], s)
+        self._adj.append([nb.tolist(), chi.tolist(), seen.tolist()])
+        adj = self._adj
+        for u, c, w in zip(nb.tolist(), chi.tolist(), seen.tolist()):
+            if u != tid:
+                entry = adj[u]
+                entry[0].append(tid)
+                entry[1].append(c)
+                entry[2].append(w)
+        lower = nb < tid
+        return nb[lower], chi[lower], seen[lower]
+
+    def _adjacent(self, tid: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(tree states, χ, visibility) of the transitions between tree state ``tid`` and every tree state,
+        in increasing order (what the transition test over all tree states gives)."""
+        nb, chi, seen = self._adj[tid]
+        return np.array(nb, dtype=np.int64), np.array(chi, dtype=float), np.array(seen, dtype=bool)
+
+    def _rewire_from(self, v: int, succ: np.ndarray, chi: np.ndarray, vis: np.ndarray) -> None:
+        """Reparent the nodes at TS states ``succ`` (with costs ``chi`` from v's state; ``vis``: the steps
+        whose crossings the task sees) through v."""
         p = self.p
         tid = self.n_tid[v]
         s = self.states[tid]
         new_cost = self.C[v] + chi
-        vis = p.words.visible(self.X[succ], s)
-        plain = ~vis
-        for q2 in p.labels.succ[self.lid[tid]][self.n_q[v]]:
-            ys = self.node_of[succ, q2]
-            better = plain & (ys >= 0) & (new_cost < self.C[np.maximum(ys, 0)] - 1e-9)
-            for k in np.flatnonzero(better):
-                self._try_reparent(int(ys[k]), v, float(chi[k]))
-        for k in np.flatnonzero(vis):
+        q2s = p.labels.succ[self.lid[tid]][self.n_q[v]]
+        if q2s:  # candidates by the costs before any reparenting (they only fall), re-checked in order
+            ys = self.node_of[succ][:, q2s].T
+            better = ~vis & (ys >= 0) & (new_cost < self.C[np.maximum(ys, 0)] - 1e-9)
+            for a, k in zip(*np.nonzero(better)):
+                self._try_reparent(int(ys[a, k]), v, float(chi[k]))
+        vk = np.flatnonzero(vis)
+        if len(vk):  # costs only fall while rewiring: skip states where no node can get cheaper through v
+            ys = self.node_of[succ[vk]]
+            Cy = np.where((ys >= 0) & (ys != v), self.C[np.maximum(ys, 0)], -INF)
+            vk = vk[(new_cost[vk][:, None] < Cy - 1e-9).any(axis=1)]
+        for k in vk:
             row = p.words.rows(s, self.states[int(succ[k])], [self.n_q[v]])[0]
             for q2 in np.flatnonzero(row):
                 y = int(self.node_of[succ[k], q2])

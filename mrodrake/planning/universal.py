@@ -28,7 +28,7 @@ import scipy.sparse as sp
 
 from mrodrake.logic.nba import NBA
 from mrodrake.planning.product import optimal_lasso
-from mrodrake.planning.semantics import ExecutedWords, _apply, _events, crossings, region_changing
+from mrodrake.planning.semantics import ExecutedWords, _apply, _events, region_changing
 from mrodrake.ts import Action, ExplicitTS, Navigate, State, TransitionSystem, Transport
 
 Member = tuple[int, int]
@@ -153,7 +153,7 @@ class FamilyWords:
     def execute(self, F: Family, s: State, t: State, order: Sequence[Action]) -> Family | None:
         """The family after s → t with its actions in ``order``."""
         mask = self.words.ts.label_mask(s) & self.words.relevant
-        sig = [c for a in region_changing(order) if (c := crossings(self.words.ts, self.words.relevant, a))]
+        sig = [c for a in region_changing(order) if (c := self.words.crossings(a))]
         return self.step(F, mask, sig)
 
 

@@ -122,3 +122,18 @@ def test_successors_hold_for_every_interleaving_of_their_order(tiny, f, seed):
                         S = {d for x in S for d in nba.successors(x, m)}
                     common = S if common is None else common & S
                 assert common <= set(got)
+
+
+def test_signature_and_rows_agree_with_the_step_key(case1):
+    """The signature read off two states is the key's; rows asked one at a time are the matrix's rows."""
+    ts, words = case1.ts, case1.words
+    ets = ts.build()
+    rng = np.random.default_rng(3)
+    fresh = ExecutedWords(ts, case1.nba, case1.relevant)
+    for u in rng.integers(0, ets.num_states, size=60):
+        s = ets.state(int(u))
+        for v in ets.successors(int(u))[:: 7]:
+            t = ets.state(int(v))
+            assert words.signature(s, t) == words.key(s, t)[:2]
+            qs = list(range(words.Q))[:: 2]
+            assert (fresh.rows(s, t, qs) == words.matrix(s, t)[qs]).all()

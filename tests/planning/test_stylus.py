@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
@@ -42,6 +43,30 @@ def test_same_seed_same_plan(case1):
     b = plan_scenario(case1.scenario, seed=7, iterations=1200)
     assert a.prefix == b.prefix and a.suffix == b.suffix
     assert a.step_costs == b.step_costs
+
+
+@settings(max_examples=10, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(n=st.integers(1, 3), m=st.integers(0, 2), k=st.integers(2, 4), seed=st.integers(0, 10**6))
+def test_vectorised_transition_test_matches_the_rules(n, m, k, seed):
+    """The tree's transition test, χ and visibility agree with the TS rules and are symmetric (tree states
+    remember them for both ends)."""
+    sc = generate_scenario(n, m, k, seed)
+    ts = TransitionSystem(sc)
+    ets = ts.build()
+    planner = Stylus(ts, *task_nba(sc, ts)[1:], relevant=ts.label_mask(ts.initial), seed=0)
+    rng = np.random.default_rng(seed)
+    rows = rng.integers(0, ets.num_states, size=min(ets.num_states, 40))
+    X = ets.states[rows]
+    for u in rows[:8]:
+        s = ets.state(int(u))
+        ok = planner.trans.mask(X, s)
+        want = [ts.check_transition(ets.state(int(r)), s) is None for r in rows]
+        assert ok.tolist() == want
+        back = np.array([s], dtype=X.dtype)
+        assert [bool(planner.trans.mask(back, ets.state(int(x)))[0]) for x in rows] == want
+        assert planner.trans.cost(X, np.array(s)[None, :]).tolist() == [ts.cost(ets.state(int(r)), s) for r in rows]
+        vis = planner.words.visible(X, s)
+        assert vis.tolist() == planner.words.visible(np.array([s] * len(X)), X).tolist()
 
 
 def test_tree_invariants_after_rewiring(case1):
