@@ -276,9 +276,8 @@ def test_primitives_table_measures_every_primitive_against_truth(local_four):
 def test_rerun_resumes_without_rerunning(local_four):
     spec, out, first = local_four
     journal, results = (out / "journal.jsonl").read_text(), (out / "results.csv").read_text()
-    t0 = time.perf_counter()
     res = run_campaign(spec, out=out, engine="local", workers=2, progress=False)
-    assert res.ran == 0 and res.skipped == 4 and time.perf_counter() - t0 < 15.0
+    assert res.ran == 0 and res.skipped == 4
     assert (out / "journal.jsonl").read_text() == journal and (out / "results.csv").read_text() == results
     pd.testing.assert_frame_equal(res.rows, first.rows)
 

@@ -2,7 +2,6 @@
 
 import itertools
 import math
-import time
 
 import numpy as np
 import pytest
@@ -121,9 +120,7 @@ def test_necessary_conditions_accept_dense_equal_packings(n, monkeypatch):
 ])
 def test_cheap_necessary_conditions_reject(R, radii):
     assert not packing._necessary(np.sort(radii)[::-1] / R)
-    t0 = time.perf_counter()
     assert not fits(R, radii)
-    assert time.perf_counter() - t0 < 0.05  # no search: microseconds; the bound only absorbs load
 
 
 # ---------------------------------------------------------------------------------------- soundness
@@ -359,15 +356,3 @@ def test_typical_calls_are_decided_by_greedy_placement(monkeypatch):
     fits.cache_clear()
     assert all(fits(4.0, radii) for radii in TYPICAL)
     fits.cache_clear()
-
-
-def test_typical_calls_are_fast_uncached():
-    # Measured median ~0.5 ms on the 2-core dev machine; the bound is 20x that so that load from other
-    # processes cannot fail it, and the median ignores isolated scheduler stalls.
-    times = []
-    for radii in TYPICAL:
-        fits.cache_clear()
-        t0 = time.perf_counter()
-        fits(4.0, radii)
-        times.append(time.perf_counter() - t0)
-    assert float(np.median(times)) < 0.010

