@@ -32,6 +32,7 @@ from scipy.spatial import cKDTree
 from shapely.geometry import MultiPolygon, Polygon
 from shapely.geometry.polygon import orient
 
+from mrodrake.control.treecode import PanelTree, build_tree
 from mrodrake.errors import UserError
 
 _SHARP_ANGLE = math.radians(30.0)  # vertices turning more than this are kept as panel ends
@@ -45,6 +46,9 @@ _CORNER_FRACTION = 1.0 / 40.0  # panels at convex corners of the outer boundary:
 REFINE_GROWTH = 1.1
 _RIDGE_FRACTIONS = (0.125, 0.875)  # circle-deficit samples along each outer panel (where its error peaks)
 _RIDGE_OFFSETS = (0.0625, 0.125, 0.25, 0.5)  # inward steps (x panel length) searched for the ridge of |H|
+#: Error bounds of the treecode on H, on every entry of J_H and on every second derivative
+#: (:mod:`mrodrake.control.treecode`; the direct sum over all panels is the reference).
+TREE_TOLERANCES = (5e-10, 5e-8, 5e-6)
 
 
 @dataclass
@@ -355,19 +359,24 @@ def _kernel(x, y, vx, vy, tx, ty, L, *, derivs: bool):
     return W, dl, theta, A, B
 
 
-def _chain(a_xy, b_xy, ring_of_panel):
-    """Vertex chain of the panels (ring by ring, each ring closed); links between rings are dummies."""
-    vs, real = [], []
+def _chain(a_xy, b_xy, ring_of_panel, with_rings=False):
+    """Vertex chain of the panels (ring by ring, each ring closed); links between rings are dummies.
+
+    Returns (vertices, link lengths, tangents x, y, real) and, ``with_rings``, the ring of every link (−1 on
+    the dummies)."""
+    vs, real, rings = [], [], []
     for r in np.unique(ring_of_panel):
         idx = np.flatnonzero(ring_of_panel == r)
         vs.append(np.vstack([a_xy[idx], b_xy[idx[-1:]]]))
         real.append(np.ones(len(idx), dtype=bool))
         real.append(np.zeros(1, dtype=bool))
+        rings += [np.full(len(idx), r), [-1]]
     v = np.vstack(vs)
     real = np.concatenate(real)[:-1]
     d = np.diff(v, axis=0)
     L = np.hypot(d[:, 0], d[:, 1])
-    return v, L, d[:, 0] / L, d[:, 1] / L, real
+    out = (v, L, d[:, 0] / L, d[:, 1] / L, real)
+    return (*out, np.concatenate(rings)[:-1]) if with_rings else out
 
 
 def _solve_refined(M: np.ndarray, rhs: np.ndarray, m32: np.ndarray | None = None) -> np.ndarray:
@@ -426,8 +435,11 @@ class PointWorldMap:
         self._ext_param = exterior_param
         d = self.panel_end - self.panel_start
         self.panel_length = np.hypot(d[:, 0], d[:, 1])
-        v, L, tx, ty, real = _chain(self.panel_start, self.panel_end, self.panel_ring)
+        v, L, tx, ty, real, link_ring = _chain(self.panel_start, self.panel_end, self.panel_ring, with_rings=True)
         self._geom = (v[:, 0].copy(), v[:, 1].copy(), tx, ty, L)
+        self._link_ring = link_ring
+        self._link_real = real
+        self._tree_cache: PanelTree | None = None
         sig = np.zeros((len(L), 2))
         sig[real] = self.sigma
         self._sig_links = sig
@@ -438,12 +450,7 @@ class PointWorldMap:
         # Hxx = A c2 − B s2, Hxy = A s2 + B c2; columns (k, ·) = (0,xx),(1,xx),(0,xy),(1,xy)
         self._S_A = np.hstack([sig * c2[:, None], sig * s2[:, None]])
         self._S_B = np.hstack([-sig * s2[:, None], sig * c2[:, None]])
-        # single-point path: [dl, θ] @ _S_g and [A, B] @ _S_h in one product each
-        self._S_g = np.vstack([self._S_dl, self._S_th])
-        self._S_h = np.vstack([self._S_A, self._S_B])
-        self._S_L = L[:, None] * sig
         self._const = np.asarray(const, dtype=float)
-        self._const_point = self._const - 2.0 * L @ sig
         self._mid_tree = cKDTree(0.5 * (self.panel_start + self.panel_end))
         self._seeds = None
         self.circle_deficit = 0.0  # δ_max of ``outer_ridge_deficit``; set by ``build``
@@ -528,6 +535,7 @@ class PointWorldMap:
             factors, panels = refined, finer
         pw.n_solves = attempt + 1
         pw.circle_deficit = pw.outer_ridge_deficit()
+        pw.tree  # noqa: B018 (built here: part of the map's construction)
         pw.build_seconds = time.perf_counter() - t0
         return pw
 
@@ -609,7 +617,43 @@ class PointWorldMap:
         return float(out[0]) if single else out
 
     # ------------------------------------------------------------------ evaluation
+    @property
+    def tree(self) -> PanelTree:
+        """The treecode of H (:mod:`mrodrake.control.treecode`), built on first use."""
+        if self._tree_cache is None:
+            vx, vy, tx, ty, L = self._geom
+            self._tree_cache = build_tree(vx, vy, tx, ty, L, self._sig_links, self._link_ring, self._link_real,
+                                          self._const, eps_value=TREE_TOLERANCES[0],
+                                          eps_gradient=TREE_TOLERANCES[1], eps_hessian=TREE_TOLERANCES[2])
+        return self._tree_cache
+
     def _eval(self, pts, want_derivs=True):
+        """(H, J_H, Hessians) at the rows of ``pts`` by the treecode (Hessians only ``want_derivs``)."""
+        out = self.tree.evaluate_many(pts, want_derivs)
+        return self._unpack(out, want_derivs)
+
+    @staticmethod
+    def _unpack(out, want_derivs):
+        Hv = out[..., 0:2]
+        if not want_derivs:
+            return Hv, None, None
+        J = out[..., 2:6].reshape(out.shape[:-1] + (2, 2))
+        hxx, hxy = out[..., 6:10:2], out[..., 7:10:2]
+        Hs = np.stack([np.stack([hxx, hxy], axis=-1), np.stack([hxy, -hxx], axis=-1)], axis=-2)
+        return Hv, J, Hs
+
+    def evaluate_flat(self, x: float, y: float) -> list[float]:
+        """[u, v, ∂x u, ∂y u, ∂x v, ∂y v, u_xx, u_xy, v_xx, v_xy] of H = (u, v) at (x, y) as Python floats
+        (u_yy = −u_xx, v_yy = −v_xx): the control law's hot path."""
+        return self.tree.evaluate(x, y, True).tolist()
+
+    def evaluate_direct(self, x) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(H, J_H, Hessians) by the direct sum over all panels (the reference of the treecode)."""
+        pts, single = _as_points(x)
+        Hv, Jv, Hs = self._direct_eval(pts)
+        return (Hv[0], Jv[0], Hs[0]) if single else (Hv, Jv, Hs)
+
+    def _direct_eval(self, pts, want_derivs=True):
         m = len(pts)
         Hv = np.empty((m, 2))
         Jv = np.empty((m, 2, 2)) if want_derivs else None
@@ -632,43 +676,12 @@ class PointWorldMap:
         return Hv, Jv, Hs
 
     def _eval_point(self, x: float, y: float, derivs: bool):
-        """Single-point version of ``_kernel`` + sums with fewer, fused array operations."""
-        vx, vy, tx, ty, L = self._geom
-        n = len(L)
-        dx = x - vx
-        dy = y - vy
-        r = dx * dx
-        r += dy * dy
-        np.maximum(r, _TINY, out=r)
-        lr = np.log(r)
-        ang = np.arctan2(dy, dx)
-        g = np.empty(2 * n)
-        dl = np.subtract(lr[:-1], lr[1:], out=g[:n])
-        th = np.subtract(ang[1:], ang[:-1], out=g[n:])
-        th -= _TWO_PI * np.rint(th * (1.0 / _TWO_PI))
-        dxa = dx[:-1]
-        dya = dy[:-1]
-        ua = dxa * tx
-        ua += dya * ty
-        eta = dya * tx
-        eta -= dxa * ty
-        W = ua * dl
-        W += 2.0 * eta * th
-        value = W @ self._sig_links + lr[1:] @ self._S_L + self._const_point
+        out = self.tree.evaluate(x, y, derivs)
         if not derivs:
-            return value, None, None
-        ir = np.reciprocal(r)
-        hb = np.empty(2 * n)
-        di = np.subtract(ir[:-1], ir[1:], out=hb[n:])
-        A = np.multiply(ua, di, out=hb[:n])
-        A += L * ir[1:]
-        A *= 2.0
-        di *= 2.0 * eta
-        gj = g @ self._S_g  # (0,x),(1,x),(0,y),(1,y)
-        hh = hb @ self._S_h  # (0,xx),(1,xx),(0,xy),(1,xy)
-        J = np.array([[gj[0], gj[2]], [gj[1], gj[3]]])
-        Hs = np.array([[[hh[0], hh[2]], [hh[2], -hh[0]]], [[hh[1], hh[3]], [hh[3], -hh[1]]]])
-        return value, J, Hs
+            return out[0:2], None, None
+        u, v, ux, uy, vx, vy, uxx, uxy, vxx, vxy = out.tolist()
+        return (out[0:2], np.array([[ux, uy], [vx, vy]]),
+                np.array([[[uxx, uxy], [uxy, -uxx]], [[vxx, vxy], [vxy, -vxx]]]))
 
     def __call__(self, x) -> np.ndarray:
         """χ = H(x) for x of shape (2,) or (n, 2)."""
