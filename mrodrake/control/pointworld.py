@@ -712,50 +712,6 @@ class PointWorldMap:
         return self._eval(pts)
 
     # ------------------------------------------------------------------ diagnostics and inverse
-    def _values_by_vertex_sums(self, pts: np.ndarray) -> np.ndarray:
-        """H at many points with the kernel regrouped by vertex (for the blob check; ~1e-12 absolute).
-
-        With coordinates relative to a centre c, u_a = p·t − a·t and η = p·n − a·n are affine in p, so
-        Σ_j σ_j W_j = p_x (R Cx) + p_y (R Cy) + R C0 + p_x (Θ Dx) + p_y (Θ Dy) + Θ D0 + const, R the
-        ln r² at the vertices and Θ the panel angles: only ln, atan2 and the wrap are done per entry.
-        """
-        vx, vy, tx, ty, L = self._geom
-        sig = self._sig_links
-        c = np.array([vx.mean(), vy.mean()])
-        ax, ay = vx[:-1] - c[0], vy[:-1] - c[1]
-        alpha = ax * tx + ay * ty  # a·t
-        beta = ay * tx - ax * ty  # a·n, n = (−t_y, t_x)
-        nv = len(vx)
-        C = np.zeros((nv, 6))
-        for col, w in enumerate((tx, ty)):
-            C[:-1, 2 * col : 2 * col + 2] += sig * w[:, None]
-            C[1:, 2 * col : 2 * col + 2] -= sig * w[:, None]
-        C[:-1, 4:6] -= sig * alpha[:, None]
-        C[1:, 4:6] += sig * (alpha + L)[:, None]
-        D = np.hstack([-2.0 * sig * ty[:, None], 2.0 * sig * tx[:, None], -2.0 * sig * beta[:, None]])
-        const = self._const - 2.0 * L @ sig
-        qx, qy = vx - c[0], vy - c[1]
-        out = np.empty((len(pts), 2))
-        rows = max(1, _CHUNK // nv)
-        for i in range(0, len(pts), rows):
-            px = pts[i : i + rows, 0] - c[0]
-            py = pts[i : i + rows, 1] - c[1]
-            dx = px[:, None] - qx
-            dy = py[:, None] - qy
-            r = dx * dx
-            r += dy * dy
-            np.maximum(r, _TINY, out=r)
-            lr = np.log(r, out=r)
-            ang = np.arctan2(dy, dx, out=dx)
-            th = np.subtract(ang[:, 1:], ang[:, :-1], out=dy[:, :-1])
-            wrap = np.rint(th * (1.0 / _TWO_PI))
-            wrap *= _TWO_PI
-            th -= wrap
-            g = lr @ C
-            g += th @ D
-            out[i : i + rows] = px[:, None] * g[:, 0:2] + py[:, None] * g[:, 2:4] + g[:, 4:6] + const
-        return out
-
     def _hole_blobs(self) -> np.ndarray:
         """Per hole ℓ: max |H − b_ℓ| on its panels (the size of the hole's image).
 
@@ -767,7 +723,7 @@ class PointWorldMap:
         frac = np.array([0.125, 0.875])
         a, b = self.panel_start[on], self.panel_end[on]
         pts = a[:, None, :] + frac[None, :, None] * (b - a)[:, None, :]
-        vals = self._values_by_vertex_sums(pts.reshape(-1, 2)).reshape(len(a), len(frac), 2)
+        vals = self(pts.reshape(-1, 2)).reshape(len(a), len(frac), 2)
         ring = self.panel_ring[on] - 1
         err = np.max(np.linalg.norm(vals - self.hole_points[ring][:, None, :], axis=-1), axis=1)
         blobs = np.zeros(len(self.hole_points))
@@ -808,7 +764,8 @@ class PointWorldMap:
         every start with |H| < ρ₀ from the outer boundary (used by the circle barrier of
         :class:`mrodrake.control.adaptive.LocalBarrierNavigationFunction`).  Samples whose boundary deficit
         is already below the running δ_max cannot raise it (the ridge is at least the boundary value), so
-        only the worst ones are stepped inward: a few thousand evaluations.
+        only the worst ones are stepped inward: a few thousand evaluations.  Evaluated by the treecode; δ_max
+        includes twice its bound on H.
         """
         ext = self.panel_ring == 0
         a, d, ell = self.panel_start[ext], (self.panel_end - self.panel_start)[ext], self.panel_length[ext]
@@ -816,7 +773,7 @@ class PointWorldMap:
         pts = (a[:, None, :] + frac[None, :, None] * d[:, None, :]).reshape(-1, 2)
         nrm = np.repeat(np.column_stack([-d[:, 1], d[:, 0]]) / ell[:, None], len(frac), axis=0)
         step = np.repeat(ell, len(frac))
-        deficit = 1.0 - np.linalg.norm(self._values_by_vertex_sums(pts), axis=1)
+        deficit = 1.0 - np.linalg.norm(self(pts), axis=1)
         order = np.argsort(-deficit)
         offs = np.asarray(_RIDGE_OFFSETS)
         best = 0.0
@@ -827,10 +784,10 @@ class PointWorldMap:
             if len(k) == 0:
                 break
             q = pts[k, None, :] + (offs[None, :] * step[k, None])[..., None] * nrm[k, None, :]
-            h = np.linalg.norm(self._values_by_vertex_sums(q.reshape(-1, 2)), axis=1).reshape(len(k), len(offs))
+            h = np.linalg.norm(self(q.reshape(-1, 2)), axis=1).reshape(len(k), len(offs))
             ridge = np.minimum(deficit[k], 1.0 - h.max(axis=1))
             best = max(best, float(ridge.max()))
-        return best
+        return best + 2.0 * TREE_TOLERANCES[0]
 
     def _inverse_seeds(self):
         if self._seeds is None:
