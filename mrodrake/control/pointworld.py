@@ -571,13 +571,19 @@ class PointWorldMap:
         L = L_link[real]
         mid = 0.5 * (a_xy + b_xy)
         size = n + n_holes + 1
-        M = np.zeros((size, size))
+        M = np.empty((size, size))
+        M[:, n:] = 0.0
+        M[n:, :n] = 0.0
         M32 = np.empty((size, size), dtype=np.float32)  # its float32 copy for the LU, filled while cache-hot
+        # real links are runs between the dummies: link l of run k is column l - k
+        dummies = np.flatnonzero(~real)
+        runs = list(zip(np.concatenate([[0], dummies + 1]), np.concatenate([dummies, [len(real)]])))
         rows = max(1, (2 * _CHUNK) // n)
         for i in range(0, n, rows):
             j = min(i + rows, n)
             W = _kernel(mid[i:j, 0], mid[i:j, 1], v[:, 0], v[:, 1], tx, ty, L_link, derivs=False)[0]
-            M[i:j, :n] = W[:, real]
+            for k, (l0, l1) in enumerate(runs):
+                M[i:j, l0 - k : l1 - k] = W[:, l0:l1]
             M32[i:j, :n] = M[i:j, :n]
         hole_of_panel = rid - 1
         on_hole = hole_of_panel >= 0
