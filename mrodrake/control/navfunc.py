@@ -198,14 +198,22 @@ def desired_velocity(pw_map, nf: NavigationFunction, x, xdot):
     With χ̇ = J ẋ, J̇ = Σ_i ∂J/∂x_i ẋ_i (the Hessians of H) and J v_d = −∇φ:
     v̇_d = −J⁻¹ (∇²φ χ̇ + J̇ v_d).  Returns (v_d, v̇_d, J_H, ∇φ, φ); φ = +∞ (NaN v_d) past a barrier's pole.
     """
-    chi, J, Hs = pw_map.evaluate(np.asarray(x, dtype=float))
+    flat = getattr(pw_map, "evaluate_flat", None)
+    if flat is not None:
+        x0, x1 = np.asarray(x, dtype=float).tolist()
+        u, v, a, b, c, d, h000, h001, h100, h101 = flat(x0, x1)
+        h010, h011, h110, h111 = h001, -h000, h101, -h100
+        chi = np.array([u, v])
+        J = np.array([[a, b], [c, d]])
+    else:
+        chi, J, Hs = pw_map.evaluate(np.asarray(x, dtype=float))
+        (a, b), (c, d) = J.tolist()
+        ((h000, h001), (h010, h011)), ((h100, h101), (h110, h111)) = Hs.tolist()
     phi, g, G = nf.evaluate(chi)
     # 2 x 2 algebra on Python floats (this is the control law's hot path; numpy's per-call overhead on
     # arrays of two elements was ~1/3 of the law's cost beyond the map)
-    (a, b), (c, d) = J.tolist()
     g0, g1 = g.tolist()
     (G00, G01), (G10, G11) = G.tolist()
-    ((h000, h001), (h010, h011)), ((h100, h101), (h110, h111)) = Hs.tolist()
     w0, w1 = np.asarray(xdot, dtype=float).tolist()
     det = a * d - b * c
     if det == 0.0:  # degenerate map: NaN velocities (the law reports a fault)

@@ -15,6 +15,10 @@ u_b = u_a − L, η = (x − a)·n, θ = signed angle under which the panel is s
     W   = u_a ln r_a − u_b ln r_b − 2L + 2ηθ,
     ∇W  = (ln r_a − ln r_b) t + 2θ n,
     ∇²W = A (t tᵀ − n nᵀ) + B (t nᵀ + n tᵀ),  A = 2(u_a/r_a − u_b/r_b),  B = 2η(1/r_a − 1/r_b).
+
+Evaluation: H, J_H and the Hessians come from the compiled treecode of :mod:`mrodrake.control.treecode`
+(multipole expansions of far clusters, these closed forms near the point), within :data:`TREE_TOLERANCES` of
+the direct sum over all panels (kept as :meth:`PointWorldMap.evaluate_direct`).
 """
 
 from __future__ import annotations
@@ -32,6 +36,7 @@ from scipy.spatial import cKDTree
 from shapely.geometry import MultiPolygon, Polygon
 from shapely.geometry.polygon import orient
 
+from mrodrake.control.treecode import PanelTree, build_tree
 from mrodrake.errors import UserError
 
 _SHARP_ANGLE = math.radians(30.0)  # vertices turning more than this are kept as panel ends
@@ -45,6 +50,9 @@ _CORNER_FRACTION = 1.0 / 40.0  # panels at convex corners of the outer boundary:
 REFINE_GROWTH = 1.1
 _RIDGE_FRACTIONS = (0.125, 0.875)  # circle-deficit samples along each outer panel (where its error peaks)
 _RIDGE_OFFSETS = (0.0625, 0.125, 0.25, 0.5)  # inward steps (x panel length) searched for the ridge of |H|
+#: Error bounds of the treecode on H, on every entry of J_H and on every second derivative
+#: (:mod:`mrodrake.control.treecode`; the direct sum over all panels is the reference).
+TREE_TOLERANCES = (5e-10, 5e-8, 5e-6)
 
 
 @dataclass
@@ -355,19 +363,24 @@ def _kernel(x, y, vx, vy, tx, ty, L, *, derivs: bool):
     return W, dl, theta, A, B
 
 
-def _chain(a_xy, b_xy, ring_of_panel):
-    """Vertex chain of the panels (ring by ring, each ring closed); links between rings are dummies."""
-    vs, real = [], []
+def _chain(a_xy, b_xy, ring_of_panel, with_rings=False):
+    """Vertex chain of the panels (ring by ring, each ring closed); links between rings are dummies.
+
+    Returns (vertices, link lengths, tangents x, y, real) and, ``with_rings``, the ring of every link (−1 on
+    the dummies)."""
+    vs, real, rings = [], [], []
     for r in np.unique(ring_of_panel):
         idx = np.flatnonzero(ring_of_panel == r)
         vs.append(np.vstack([a_xy[idx], b_xy[idx[-1:]]]))
         real.append(np.ones(len(idx), dtype=bool))
         real.append(np.zeros(1, dtype=bool))
+        rings += [np.full(len(idx), r), [-1]]
     v = np.vstack(vs)
     real = np.concatenate(real)[:-1]
     d = np.diff(v, axis=0)
     L = np.hypot(d[:, 0], d[:, 1])
-    return v, L, d[:, 0] / L, d[:, 1] / L, real
+    out = (v, L, d[:, 0] / L, d[:, 1] / L, real)
+    return (*out, np.concatenate(rings)[:-1]) if with_rings else out
 
 
 def _solve_refined(M: np.ndarray, rhs: np.ndarray, m32: np.ndarray | None = None) -> np.ndarray:
@@ -426,8 +439,11 @@ class PointWorldMap:
         self._ext_param = exterior_param
         d = self.panel_end - self.panel_start
         self.panel_length = np.hypot(d[:, 0], d[:, 1])
-        v, L, tx, ty, real = _chain(self.panel_start, self.panel_end, self.panel_ring)
+        v, L, tx, ty, real, link_ring = _chain(self.panel_start, self.panel_end, self.panel_ring, with_rings=True)
         self._geom = (v[:, 0].copy(), v[:, 1].copy(), tx, ty, L)
+        self._link_ring = link_ring
+        self._link_real = real
+        self._tree_cache: PanelTree | None = None
         sig = np.zeros((len(L), 2))
         sig[real] = self.sigma
         self._sig_links = sig
@@ -438,12 +454,7 @@ class PointWorldMap:
         # Hxx = A c2 − B s2, Hxy = A s2 + B c2; columns (k, ·) = (0,xx),(1,xx),(0,xy),(1,xy)
         self._S_A = np.hstack([sig * c2[:, None], sig * s2[:, None]])
         self._S_B = np.hstack([-sig * s2[:, None], sig * c2[:, None]])
-        # single-point path: [dl, θ] @ _S_g and [A, B] @ _S_h in one product each
-        self._S_g = np.vstack([self._S_dl, self._S_th])
-        self._S_h = np.vstack([self._S_A, self._S_B])
-        self._S_L = L[:, None] * sig
         self._const = np.asarray(const, dtype=float)
-        self._const_point = self._const - 2.0 * L @ sig
         self._mid_tree = cKDTree(0.5 * (self.panel_start + self.panel_end))
         self._seeds = None
         self.circle_deficit = 0.0  # δ_max of ``outer_ridge_deficit``; set by ``build``
@@ -528,6 +539,7 @@ class PointWorldMap:
             factors, panels = refined, finer
         pw.n_solves = attempt + 1
         pw.circle_deficit = pw.outer_ridge_deficit()
+        pw.tree  # noqa: B018 (built here: part of the map's construction)
         pw.build_seconds = time.perf_counter() - t0
         return pw
 
@@ -563,13 +575,19 @@ class PointWorldMap:
         L = L_link[real]
         mid = 0.5 * (a_xy + b_xy)
         size = n + n_holes + 1
-        M = np.zeros((size, size))
+        M = np.empty((size, size))
+        M[:, n:] = 0.0
+        M[n:, :n] = 0.0
         M32 = np.empty((size, size), dtype=np.float32)  # its float32 copy for the LU, filled while cache-hot
+        # real links are runs between the dummies: link l of run k is column l - k
+        dummies = np.flatnonzero(~real)
+        runs = list(zip(np.concatenate([[0], dummies + 1]), np.concatenate([dummies, [len(real)]])))
         rows = max(1, (2 * _CHUNK) // n)
         for i in range(0, n, rows):
             j = min(i + rows, n)
             W = _kernel(mid[i:j, 0], mid[i:j, 1], v[:, 0], v[:, 1], tx, ty, L_link, derivs=False)[0]
-            M[i:j, :n] = W[:, real]
+            for k, (l0, l1) in enumerate(runs):
+                M[i:j, l0 - k : l1 - k] = W[:, l0:l1]
             M32[i:j, :n] = M[i:j, :n]
         hole_of_panel = rid - 1
         on_hole = hole_of_panel >= 0
@@ -609,7 +627,43 @@ class PointWorldMap:
         return float(out[0]) if single else out
 
     # ------------------------------------------------------------------ evaluation
+    @property
+    def tree(self) -> PanelTree:
+        """The treecode of H (:mod:`mrodrake.control.treecode`), built on first use."""
+        if self._tree_cache is None:
+            vx, vy, tx, ty, L = self._geom
+            self._tree_cache = build_tree(vx, vy, tx, ty, L, self._sig_links, self._link_ring, self._link_real,
+                                          self._const, eps_value=TREE_TOLERANCES[0],
+                                          eps_gradient=TREE_TOLERANCES[1], eps_hessian=TREE_TOLERANCES[2])
+        return self._tree_cache
+
     def _eval(self, pts, want_derivs=True):
+        """(H, J_H, Hessians) at the rows of ``pts`` by the treecode (Hessians only ``want_derivs``)."""
+        out = self.tree.evaluate_many(pts, want_derivs)
+        return self._unpack(out, want_derivs)
+
+    @staticmethod
+    def _unpack(out, want_derivs):
+        Hv = out[..., 0:2]
+        if not want_derivs:
+            return Hv, None, None
+        J = out[..., 2:6].reshape(out.shape[:-1] + (2, 2))
+        hxx, hxy = out[..., 6:10:2], out[..., 7:10:2]
+        Hs = np.stack([np.stack([hxx, hxy], axis=-1), np.stack([hxy, -hxx], axis=-1)], axis=-2)
+        return Hv, J, Hs
+
+    def evaluate_flat(self, x: float, y: float) -> list[float]:
+        """[u, v, ∂x u, ∂y u, ∂x v, ∂y v, u_xx, u_xy, v_xx, v_xy] of H = (u, v) at (x, y) as Python floats
+        (u_yy = −u_xx, v_yy = −v_xx): the control law's hot path."""
+        return self.tree.evaluate(x, y, True).tolist()
+
+    def evaluate_direct(self, x) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(H, J_H, Hessians) by the direct sum over all panels (the reference of the treecode)."""
+        pts, single = _as_points(x)
+        Hv, Jv, Hs = self._direct_eval(pts)
+        return (Hv[0], Jv[0], Hs[0]) if single else (Hv, Jv, Hs)
+
+    def _direct_eval(self, pts, want_derivs=True):
         m = len(pts)
         Hv = np.empty((m, 2))
         Jv = np.empty((m, 2, 2)) if want_derivs else None
@@ -632,43 +686,12 @@ class PointWorldMap:
         return Hv, Jv, Hs
 
     def _eval_point(self, x: float, y: float, derivs: bool):
-        """Single-point version of ``_kernel`` + sums with fewer, fused array operations."""
-        vx, vy, tx, ty, L = self._geom
-        n = len(L)
-        dx = x - vx
-        dy = y - vy
-        r = dx * dx
-        r += dy * dy
-        np.maximum(r, _TINY, out=r)
-        lr = np.log(r)
-        ang = np.arctan2(dy, dx)
-        g = np.empty(2 * n)
-        dl = np.subtract(lr[:-1], lr[1:], out=g[:n])
-        th = np.subtract(ang[1:], ang[:-1], out=g[n:])
-        th -= _TWO_PI * np.rint(th * (1.0 / _TWO_PI))
-        dxa = dx[:-1]
-        dya = dy[:-1]
-        ua = dxa * tx
-        ua += dya * ty
-        eta = dya * tx
-        eta -= dxa * ty
-        W = ua * dl
-        W += 2.0 * eta * th
-        value = W @ self._sig_links + lr[1:] @ self._S_L + self._const_point
+        out = self.tree.evaluate(x, y, derivs)
         if not derivs:
-            return value, None, None
-        ir = np.reciprocal(r)
-        hb = np.empty(2 * n)
-        di = np.subtract(ir[:-1], ir[1:], out=hb[n:])
-        A = np.multiply(ua, di, out=hb[:n])
-        A += L * ir[1:]
-        A *= 2.0
-        di *= 2.0 * eta
-        gj = g @ self._S_g  # (0,x),(1,x),(0,y),(1,y)
-        hh = hb @ self._S_h  # (0,xx),(1,xx),(0,xy),(1,xy)
-        J = np.array([[gj[0], gj[2]], [gj[1], gj[3]]])
-        Hs = np.array([[[hh[0], hh[2]], [hh[2], -hh[0]]], [[hh[1], hh[3]], [hh[3], -hh[1]]]])
-        return value, J, Hs
+            return out[0:2], None, None
+        u, v, ux, uy, vx, vy, uxx, uxy, vxx, vxy = out.tolist()
+        return (out[0:2], np.array([[ux, uy], [vx, vy]]),
+                np.array([[[uxx, uxy], [uxy, -uxx]], [[vxx, vxy], [vxy, -vxx]]]))
 
     def __call__(self, x) -> np.ndarray:
         """χ = H(x) for x of shape (2,) or (n, 2)."""
@@ -699,50 +722,6 @@ class PointWorldMap:
         return self._eval(pts)
 
     # ------------------------------------------------------------------ diagnostics and inverse
-    def _values_by_vertex_sums(self, pts: np.ndarray) -> np.ndarray:
-        """H at many points with the kernel regrouped by vertex (for the blob check; ~1e-12 absolute).
-
-        With coordinates relative to a centre c, u_a = p·t − a·t and η = p·n − a·n are affine in p, so
-        Σ_j σ_j W_j = p_x (R Cx) + p_y (R Cy) + R C0 + p_x (Θ Dx) + p_y (Θ Dy) + Θ D0 + const, R the
-        ln r² at the vertices and Θ the panel angles: only ln, atan2 and the wrap are done per entry.
-        """
-        vx, vy, tx, ty, L = self._geom
-        sig = self._sig_links
-        c = np.array([vx.mean(), vy.mean()])
-        ax, ay = vx[:-1] - c[0], vy[:-1] - c[1]
-        alpha = ax * tx + ay * ty  # a·t
-        beta = ay * tx - ax * ty  # a·n, n = (−t_y, t_x)
-        nv = len(vx)
-        C = np.zeros((nv, 6))
-        for col, w in enumerate((tx, ty)):
-            C[:-1, 2 * col : 2 * col + 2] += sig * w[:, None]
-            C[1:, 2 * col : 2 * col + 2] -= sig * w[:, None]
-        C[:-1, 4:6] -= sig * alpha[:, None]
-        C[1:, 4:6] += sig * (alpha + L)[:, None]
-        D = np.hstack([-2.0 * sig * ty[:, None], 2.0 * sig * tx[:, None], -2.0 * sig * beta[:, None]])
-        const = self._const - 2.0 * L @ sig
-        qx, qy = vx - c[0], vy - c[1]
-        out = np.empty((len(pts), 2))
-        rows = max(1, _CHUNK // nv)
-        for i in range(0, len(pts), rows):
-            px = pts[i : i + rows, 0] - c[0]
-            py = pts[i : i + rows, 1] - c[1]
-            dx = px[:, None] - qx
-            dy = py[:, None] - qy
-            r = dx * dx
-            r += dy * dy
-            np.maximum(r, _TINY, out=r)
-            lr = np.log(r, out=r)
-            ang = np.arctan2(dy, dx, out=dx)
-            th = np.subtract(ang[:, 1:], ang[:, :-1], out=dy[:, :-1])
-            wrap = np.rint(th * (1.0 / _TWO_PI))
-            wrap *= _TWO_PI
-            th -= wrap
-            g = lr @ C
-            g += th @ D
-            out[i : i + rows] = px[:, None] * g[:, 0:2] + py[:, None] * g[:, 2:4] + g[:, 4:6] + const
-        return out
-
     def _hole_blobs(self) -> np.ndarray:
         """Per hole ℓ: max |H − b_ℓ| on its panels (the size of the hole's image).
 
@@ -754,7 +733,7 @@ class PointWorldMap:
         frac = np.array([0.125, 0.875])
         a, b = self.panel_start[on], self.panel_end[on]
         pts = a[:, None, :] + frac[None, :, None] * (b - a)[:, None, :]
-        vals = self._values_by_vertex_sums(pts.reshape(-1, 2)).reshape(len(a), len(frac), 2)
+        vals = self(pts.reshape(-1, 2)).reshape(len(a), len(frac), 2)
         ring = self.panel_ring[on] - 1
         err = np.max(np.linalg.norm(vals - self.hole_points[ring][:, None, :], axis=-1), axis=1)
         blobs = np.zeros(len(self.hole_points))
@@ -795,7 +774,8 @@ class PointWorldMap:
         every start with |H| < ρ₀ from the outer boundary (used by the circle barrier of
         :class:`mrodrake.control.adaptive.LocalBarrierNavigationFunction`).  Samples whose boundary deficit
         is already below the running δ_max cannot raise it (the ridge is at least the boundary value), so
-        only the worst ones are stepped inward: a few thousand evaluations.
+        only the worst ones are stepped inward: a few thousand evaluations.  Evaluated by the treecode; δ_max
+        includes twice its bound on H.
         """
         ext = self.panel_ring == 0
         a, d, ell = self.panel_start[ext], (self.panel_end - self.panel_start)[ext], self.panel_length[ext]
@@ -803,7 +783,7 @@ class PointWorldMap:
         pts = (a[:, None, :] + frac[None, :, None] * d[:, None, :]).reshape(-1, 2)
         nrm = np.repeat(np.column_stack([-d[:, 1], d[:, 0]]) / ell[:, None], len(frac), axis=0)
         step = np.repeat(ell, len(frac))
-        deficit = 1.0 - np.linalg.norm(self._values_by_vertex_sums(pts), axis=1)
+        deficit = 1.0 - np.linalg.norm(self(pts), axis=1)
         order = np.argsort(-deficit)
         offs = np.asarray(_RIDGE_OFFSETS)
         best = 0.0
@@ -814,10 +794,10 @@ class PointWorldMap:
             if len(k) == 0:
                 break
             q = pts[k, None, :] + (offs[None, :] * step[k, None])[..., None] * nrm[k, None, :]
-            h = np.linalg.norm(self._values_by_vertex_sums(q.reshape(-1, 2)), axis=1).reshape(len(k), len(offs))
+            h = np.linalg.norm(self(q.reshape(-1, 2)), axis=1).reshape(len(k), len(offs))
             ridge = np.minimum(deficit[k], 1.0 - h.max(axis=1))
             best = max(best, float(ridge.max()))
-        return best
+        return best + 2.0 * TREE_TOLERANCES[0]
 
     def _inverse_seeds(self):
         if self._seeds is None:

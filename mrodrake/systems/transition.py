@@ -142,10 +142,14 @@ class RunStatus:
     switches: int = 0
 
 
+#: Target accuracy of the implicit-Euler spans of :func:`advance_with_stiffness_switch`.
+IMPLICIT_ACCURACY = 1e-3
+
+
 def advance_with_stiffness_switch(sim: Simulator, t_final: float, *, accuracy: float = 1e-4, max_step: float = 2.0,
                                   explicit: str = "runge_kutta3", implicit: str = "implicit_euler",
                                   window: int = 100, min_step: float = 1e-3, implicit_span: float = 2.0,
-                                  implicit_accuracy: float = 1e-3, fault=None) -> RunStatus:
+                                  implicit_accuracy: float = IMPLICIT_ACCURACY, fault=None) -> RunStatus:
     """Advance ``sim`` to ``t_final`` with an explicit error-controlled integrator, switching to an implicit
     one for ``implicit_span`` simulated seconds whenever the last ``window`` steps averaged less than
     ``min_step`` (stiffness).

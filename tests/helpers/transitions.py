@@ -25,10 +25,12 @@ from mrodrake.control.tasks import entity_layout
 from mrodrake.errors import UserError
 from mrodrake.geometry import polygon
 from mrodrake.scenario import load_scenario
-from mrodrake.systems.transition import simulate_transition
+from mrodrake.systems.transition import IMPLICIT_ACCURACY, simulate_transition
 
 SCEN = Path(__file__).resolve().parents[2] / "scenarios"
 CASE1 = load_scenario(SCEN / "case_study_1.yaml")
+#: Drake's Newton stopping factor κ of its implicit integrators (update norm < κ × accuracy).
+NEWTON_KAPPA = 0.05
 M_HAT_BOUND = 50.0  # |m̂| and α̂ stay far below this (true masses <= 10 kg per entity, α̂(0) <= 4 x 5 = 20)
 
 
@@ -81,11 +83,15 @@ def check_guarantees(r) -> None:
     assert clear > 0.0, f"{r.task.label}: clearance {clear:.4f} m to {what}"
     assert np.all(np.abs(log["m_hat"]) < M_HAT_BOUND)
     assert np.all((log["alpha_hat"] >= 0.0) & (log["alpha_hat"] < M_HAT_BOUND))
-    # dα̂/dt = k_α‖e_v‖² ≥ 0: α̂ never falls, up to the implicit-Euler spans (stiff stretches), whose Newton
-    # iteration stops at a residual relative to the state (seen: -6e-9 at α̂ = 5.01); 1e-7 relative still
-    # catches a reset to α̂(0) or a sign error of the law (α̂ gains ~1e-2 over a transition)
+    # dα̂/dt = k_α‖e_v‖² ≥ 0: α̂ never falls, up to the implicit-Euler spans (stiff stretches): their Newton
+    # iteration stops once its update is below κ × accuracy in the weighted state norm (Drake's implicit
+    # integrators, κ = 0.05 after Hairer & Wanner IV.8; accuracy 1e-3 there), so one step may lose up to that,
+    # relative to max(1, |α̂|).  A reset to α̂(0) (a drop of the ~1e-2 gained over a transition) exceeds it;
+    # a sign error of the law shows as a net loss over the transition.
     a = log["alpha_hat"].to_numpy()
-    assert np.all(np.diff(a) >= -1e-7 * np.maximum(1.0, np.abs(a[1:])))
+    newton = NEWTON_KAPPA * IMPLICIT_ACCURACY
+    assert np.all(np.diff(a) >= -newton * np.maximum(1.0, np.abs(a[1:])))
+    assert a[-1] >= a[0]
 
 
 def random_spot(region, radius, others, rng):

@@ -1,0 +1,333 @@
+"""Fast evaluation of a panel single-layer potential and its first two derivatives: a compiled treecode.
+
+The potential of panel charges σ_j on straight panels is u(z) = Σ_j σ_j ∫_panel ln|z − w|² ds_w + c =
+2 Re F(z) + c with F(z) = Σ_j σ_j ∫ log(z − w) ds_w (z = x + iy).  For a cluster of panels inside the disk
+|w − c| ≤ R and a point with |z − c| = ρ > R, ζ = R / (z − c), r = R / ρ < 1,
+
+    F   = Q log(z − c) − Σ_{p≥1} (m_p / p) ζ^p,
+    F'  = (z − c)⁻¹  Σ_{p≥0} m_p ζ^p,
+    F'' = −(z − c)⁻² Σ_{p≥0} (p + 1) m_p ζ^p,
+
+with the scaled moments m_p = R^{−p} Σ_j σ_j ∫ (w − c)^p ds (m_0 = Q, |m_p| ≤ S = Σ_j |σ_j| L_j), exact for a
+straight panel from a to b with unit direction τ: ∫ (w − c)^p ds = ((b − c)^{p+1} − (a − c)^{p+1}) / (τ (p + 1)).
+Then ∂_x u = 2 Re F', ∂_y u = −2 Im F', ∂_xx u = −∂_yy u = 2 Re F'', ∂_xy u = −2 Im F''.
+
+Truncation after p = P (tails of geometric series, |ζ| ≤ r):
+
+    |Δu|         ≤ 2 S r^{P+1} / ((P + 1)(1 − r)),
+    |Δ∂_i u|     ≤ 2 S r^{P+1} / (ρ (1 − r)),
+    |Δ∂_i∂_j u|  ≤ 2 S r^{P+1} ((P + 2) − (P + 1) r) / (ρ² (1 − r)²).
+
+A cluster is summed by its expansion when the P these bounds need for tolerances ε · S / S_tot (S_tot: the
+total Σ |σ_j| L_j of the component) is at most ``order``; otherwise its two halves are tried, and a leaf (a
+run of consecutive panels of one ring) is summed directly with the closed forms of
+:mod:`mrodrake.control.pointworld`.  The clusters summed by expansion are disjoint, so the total error of u,
+of every first and of every second derivative is at most ε_H, ε_J and ε_Hess (plus rounding).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+#: Panels per leaf (a run of consecutive panels on one ring).
+LEAF_PANELS = 16
+#: Highest term of the stored expansions.
+ORDER = 30
+#: Largest R / ρ at which a cluster's expansion is used.
+MAX_RATIO = 0.6
+_TWO_PI = 2.0 * math.pi
+_TINY = 1e-300
+_STACK = 256
+
+
+class PanelTree:
+    """Clusters of the panels of a chain (see :func:`build_tree`) with the expansions of two potentials."""
+
+    def __init__(self, vert, links, nodef, nodei, coef, params):
+        self.vert = vert  # (nv, 2) chain vertices
+        self.links = links  # (nl, 5): tx, ty, L, σ_u, σ_v per link (σ = 0 on the links between rings)
+        self.nodef = nodef  # (nn, 3): centre x, y and radius R
+        self.nodei = nodei  # (nn, 4): children (−1 at a leaf), first and one-past-last link of a leaf
+        self.coef = coef  # (nn, 2, 3, ORDER + 1) complex: m_p / p, m_p, (p + 1) m_p per component
+        self.params = params  # ε_H/(2 S_tot), ε_J/(2 S_tot), ε_Hess/(2 S_tot (ORDER + 2)), const_u, const_v, ratio²
+
+    def evaluate(self, x: float, y: float, derivs: bool = True) -> np.ndarray:
+        """[u, v, ∂x u, ∂y u, ∂x v, ∂y v, u_xx, u_xy, v_xx, v_xy] at one point (see ``tree_point``)."""
+        out = np.empty(10)
+        tree_point(x, y, derivs, self.vert, self.links, self.nodef, self.nodei, self.coef, self.params, out)
+        return out
+
+    def evaluate_many(self, pts: np.ndarray, derivs: bool = True) -> np.ndarray:
+        """``evaluate`` at every row of ``pts`` (n, 2); shape (n, 10)."""
+        out = np.empty((len(pts), 10))
+        tree_points(np.ascontiguousarray(pts, dtype=float), derivs, self.vert, self.links, self.nodef, self.nodei,
+                    self.coef, self.params, out)
+        return out
+
+
+def _leaves(ring_of_link, real, lengths, max_panels, max_length):
+    """(first, end) link ranges: runs of consecutive real links of one ring, at most ``max_panels`` links and
+    (beyond their first link) at most ``max_length`` long each."""
+    out = []
+    n = len(real)
+    j = 0
+    while j < n:
+        if not real[j]:
+            j += 1
+            continue
+        k = j + 1
+        total = lengths[j]
+        while (k < n and real[k] and ring_of_link[k] == ring_of_link[j] and k - j < max_panels
+               and total + lengths[k] <= max_length):
+            total += lengths[k]
+            k += 1
+        out.append((j, k))
+        j = k
+    return out
+
+
+@njit(cache=True, nogil=True)
+def _node_moments(vert, links, leaf_lo, leaf_hi, first, last, centre, coef, radius):
+    """Radius R and coefficients (m_p / p, m_p, (p + 1) m_p) of every node: the links of leaves first..last − 1
+    (in tree order) about the node's centre."""
+    order = coef.shape[3] - 1
+    for k in range(first.shape[0]):
+        cx = centre[k, 0]
+        cy = centre[k, 1]
+        R2 = 0.0
+        for q in range(first[k], last[k]):
+            for i in range(leaf_lo[q], leaf_hi[q] + 1):
+                ex = vert[i, 0] - cx
+                ey = vert[i, 1] - cy
+                R2 = max(R2, ex * ex + ey * ey)
+        R = max(math.sqrt(R2), 1e-300)
+        radius[k] = R
+        for q in range(first[k], last[k]):
+            for j in range(leaf_lo[q], leaf_hi[q]):
+                alpha = complex(vert[j, 0] - cx, vert[j, 1] - cy) / R
+                beta = complex(vert[j + 1, 0] - cx, vert[j + 1, 1] - cy) / R
+                scale = R / complex(links[j, 0], links[j, 1])
+                su = links[j, 3]
+                sv = links[j, 4]
+                pa = alpha
+                pb = beta
+                for p in range(order + 1):
+                    term = scale * (pb - pa) / (p + 1)
+                    coef[k, 0, 1, p] += su * term
+                    coef[k, 1, 1, p] += sv * term
+                    pa *= alpha
+                    pb *= beta
+        for c in range(2):
+            for p in range(order + 1):
+                m = coef[k, c, 1, p]
+                coef[k, c, 0, p] = m / p if p > 0 else 0j
+                coef[k, c, 2, p] = m * (p + 1)
+
+
+def build_tree(vx, vy, tx, ty, L, sigma_links, ring_of_link, real, const, *, eps_value: float = 5e-10,
+               eps_gradient: float = 5e-8, eps_hessian: float = 5e-6, leaf_panels: int = LEAF_PANELS,
+               order: int = ORDER, max_ratio: float = MAX_RATIO) -> PanelTree:
+    """The tree of a panel chain (vertices (vx, vy); link j from vertex j to j + 1 with unit tangent (tx, ty)_j,
+    length L_j, charges ``sigma_links`` (nl, 2), ring ``ring_of_link``; ``real`` false on the links between
+    rings) and tolerances on u, on each first and on each second derivative (module docstring).
+
+    Leaves are split in two halves of their centres along the longer side of their bounding box."""
+    vert = np.ascontiguousarray(np.column_stack([vx, vy]), dtype=float)
+    links = np.ascontiguousarray(np.column_stack([tx, ty, L, sigma_links[:, 0], sigma_links[:, 1]]), dtype=float)
+    span = float(np.hypot(*(vert.max(axis=0) - vert.min(axis=0))))
+    leaves = np.array(_leaves(np.asarray(ring_of_link), np.asarray(real, dtype=bool), np.asarray(L, dtype=float),
+                              leaf_panels, span / 32.0), dtype=np.int64).reshape(-1, 2)
+    box_lo = np.array([vert[lo : hi + 1].min(axis=0) for lo, hi in leaves]).reshape(-1, 2)
+    box_hi = np.array([vert[lo : hi + 1].max(axis=0) for lo, hi in leaves]).reshape(-1, 2)
+    mid = 0.5 * (box_lo + box_hi)
+    children, centres, first, last, tree_order = [], [], [], [], []
+
+    def make(ids):
+        k = len(children)
+        children.append((-1, -1))
+        last.append(-1)
+        lo_xy, hi_xy = box_lo[ids].min(axis=0), box_hi[ids].max(axis=0)
+        centres.append(0.5 * (lo_xy + hi_xy))
+        first.append(len(tree_order))
+        if len(ids) == 1:
+            tree_order.append(int(ids[0]))
+        else:
+            axis = int(np.argmax(hi_xy - lo_xy))
+            ids = ids[np.argsort(mid[ids, axis], kind="stable")]
+            half = len(ids) // 2
+            children[k] = (make(ids[:half]), make(ids[half:]))
+        last[k] = len(tree_order)
+        return k
+
+    make(np.arange(len(leaves)))
+    nn = len(children)
+    tree_order = np.array(tree_order, dtype=np.int64)
+    first_a = np.array(first, dtype=np.int64)
+    last_a = np.array(last, dtype=np.int64)
+    centre = np.array(centres, dtype=float).reshape(nn, 2)
+    coef = np.zeros((nn, 2, 3, order + 1), dtype=complex)
+    radius = np.empty(nn)
+    _node_moments(vert, links, leaves[tree_order, 0], leaves[tree_order, 1], first_a, last_a, centre, coef, radius)
+    nodei = np.full((nn, 4), -1, dtype=np.int64)
+    nodei[:, :2] = np.array(children, dtype=np.int64)
+    leaf = nodei[:, 0] < 0
+    nodei[leaf, 2:] = leaves[tree_order[first_a[leaf]]]
+    nodef = np.column_stack([centre, radius])
+    s_tot = max(float(np.max(np.abs(sigma_links).T @ np.asarray(L, dtype=float))), 1e-300)
+    params = np.array([eps_value / (2.0 * s_tot), eps_gradient / (2.0 * s_tot),
+                       eps_hessian / (2.0 * s_tot * (order + 2)), float(const[0]), float(const[1]),
+                       max_ratio * max_ratio])
+    return PanelTree(vert, links, nodef, nodei, coef, params)
+
+
+@njit(cache=True, nogil=True)
+def _direct(x, y, derivs, vert, links, lo, hi, out):
+    """Closed-form sums of the links [lo, hi) added to ``out``."""
+    dxp = x - vert[lo, 0]
+    dyp = y - vert[lo, 1]
+    rp = max(dxp * dxp + dyp * dyp, _TINY)
+    lrp = math.log(rp)
+    angp = math.atan2(dyp, dxp)
+    irp = 1.0 / rp
+    for j in range(lo, hi):
+        dx = x - vert[j + 1, 0]
+        dy = y - vert[j + 1, 1]
+        r = max(dx * dx + dy * dy, _TINY)
+        lr = math.log(r)
+        ang = math.atan2(dy, dx)
+        tx = links[j, 0]
+        ty = links[j, 1]
+        L = links[j, 2]
+        su = links[j, 3]
+        sv = links[j, 4]
+        dl = lrp - lr
+        th = ang - angp
+        th -= _TWO_PI * np.rint(th * (1.0 / _TWO_PI))
+        ua = dxp * tx + dyp * ty
+        eta = dyp * tx - dxp * ty
+        W = ua * dl + L * (lr - 2.0) + 2.0 * eta * th
+        out[0] += su * W
+        out[1] += sv * W
+        if derivs:
+            gx = dl * tx - 2.0 * th * ty
+            gy = dl * ty + 2.0 * th * tx
+            out[2] += su * gx
+            out[3] += su * gy
+            out[4] += sv * gx
+            out[5] += sv * gy
+            ir = 1.0 / r
+            di = irp - ir
+            A = 2.0 * (ua * di + L * ir)
+            B = 2.0 * eta * di
+            c2 = tx * tx - ty * ty
+            s2 = 2.0 * tx * ty
+            hxx = A * c2 - B * s2
+            hxy = A * s2 + B * c2
+            out[6] += su * hxx
+            out[7] += su * hxy
+            out[8] += sv * hxx
+            out[9] += sv * hxy
+            irp = ir
+        dxp = dx
+        dyp = dy
+        lrp = lr
+        angp = ang
+
+
+@njit(cache=True, nogil=True)
+def _expansion(dx, dy, R, P, derivs, coef, node, out):
+    """The expansion of ``node`` with terms p = 0..P at z − c = dx + i dy added to ``out``."""
+    d = complex(dx, dy)
+    zeta = R / d
+    f0u = 0j
+    f0v = 0j
+    f1u = 0j
+    f1v = 0j
+    f2u = 0j
+    f2v = 0j
+    for p in range(P, -1, -1):
+        f0u = f0u * zeta + coef[node, 0, 0, p]
+        f0v = f0v * zeta + coef[node, 1, 0, p]
+        if derivs:
+            f1u = f1u * zeta + coef[node, 0, 1, p]
+            f1v = f1v * zeta + coef[node, 1, 1, p]
+            f2u = f2u * zeta + coef[node, 0, 2, p]
+            f2v = f2v * zeta + coef[node, 1, 2, p]
+    ln_rho = 0.5 * math.log(dx * dx + dy * dy)
+    qu = coef[node, 0, 1, 0].real
+    qv = coef[node, 1, 1, 0].real
+    out[0] += 2.0 * (qu * ln_rho - f0u.real)
+    out[1] += 2.0 * (qv * ln_rho - f0v.real)
+    if derivs:
+        inv = 1.0 / d
+        g_u = f1u * inv
+        g_v = f1v * inv
+        out[2] += 2.0 * g_u.real
+        out[3] -= 2.0 * g_u.imag
+        out[4] += 2.0 * g_v.real
+        out[5] -= 2.0 * g_v.imag
+        inv2 = inv * inv
+        h_u = -f2u * inv2
+        h_v = -f2v * inv2
+        out[6] += 2.0 * h_u.real
+        out[7] -= 2.0 * h_u.imag
+        out[8] += 2.0 * h_v.real
+        out[9] -= 2.0 * h_v.imag
+
+
+@njit(cache=True, nogil=True)
+def _terms_needed(rho2, R, derivs, params, order):
+    """Highest term P the bounds need at ρ² = |z − c|², or order + 1 if the expansion cannot be used."""
+    if R * R >= params[5] * rho2:
+        return order + 1
+    rho = math.sqrt(rho2)
+    r = R / rho
+    q = 1.0 - r
+    k = params[0] * q
+    if derivs:
+        k = min(k, params[1] * rho * q, params[2] * rho2 * q * q)
+    need = math.ceil(math.log(k) / math.log(r)) - 1  # r^{P+1} <= k
+    if need < 0:
+        return 0
+    if need > order:
+        return order + 1
+    return need
+
+
+@njit(cache=True, nogil=True)
+def tree_point(x, y, derivs, vert, links, nodef, nodei, coef, params, out):
+    """out = u, v, ∂x u, ∂y u, ∂x v, ∂y v, u_xx, u_xy, v_xx, v_xy at (x, y) (the second derivatives only
+    with ``derivs``; u_yy = −u_xx)."""
+    order = coef.shape[3] - 1
+    for i in range(10):
+        out[i] = 0.0
+    stack = np.empty(_STACK, dtype=np.int64)
+    stack[0] = 0
+    top = 1
+    while top > 0:
+        top -= 1
+        node = stack[top]
+        dx = x - nodef[node, 0]
+        dy = y - nodef[node, 1]
+        R = nodef[node, 2]
+        P = _terms_needed(dx * dx + dy * dy, R, derivs, params, order)
+        if P <= order:
+            _expansion(dx, dy, R, P, derivs, coef, node, out)
+        elif nodei[node, 0] < 0:
+            _direct(x, y, derivs, vert, links, nodei[node, 2], nodei[node, 3], out)
+        else:
+            stack[top] = nodei[node, 1]
+            stack[top + 1] = nodei[node, 0]
+            top += 2
+    out[0] += params[3]
+    out[1] += params[4]
+
+
+@njit(cache=True, nogil=True)
+def tree_points(pts, derivs, vert, links, nodef, nodei, coef, params, out):
+    """``tree_point`` at every row of ``pts``."""
+    for i in range(pts.shape[0]):
+        tree_point(pts[i, 0], pts[i, 1], derivs, vert, links, nodef, nodei, coef, params, out[i])
