@@ -154,6 +154,19 @@ def _apply(mask: int, event: tuple[int, int]) -> int:
     return mask | (1 << bit) if sign > 0 else mask & ~(1 << bit)
 
 
+def _record_common(F: frozenset, prefix: tuple[int, ...], out: dict[int, tuple[int, ...]]) -> None:
+    """Record ``prefix`` (an order) for every NBA state that every member of the family F reaches."""
+    common = -1
+    for S in F:
+        common &= S
+    d = 0
+    while common > 0:
+        if common & 1:
+            out.setdefault(d, prefix)
+        common >>= 1
+        d += 1
+
+
 def interleavings(cross: Sequence[Crossing]) -> Iterator[list[tuple[int, int]]]:
     """Every order of the crossing events of one action (each body leaves before it enters)."""
     events, pre = _events(cross)
@@ -407,15 +420,7 @@ class ExecutedWords:
             while stack:
                 F, m, left, prefix = stack.pop()
                 if left == 0:
-                    common = -1
-                    for S in F:
-                        common &= S
-                    d = 0
-                    while common > 0:
-                        if common & 1:
-                            out.setdefault(d, prefix)
-                        common >>= 1
-                        d += 1
+                    _record_common(F, prefix, out)
                     continue
                 for i in range(n - 1, -1, -1):
                     if left >> i & 1:
@@ -432,15 +437,7 @@ class ExecutedWords:
             budget[1] -= 1
             if left == 0:
                 budget[0] -= 1
-                common = -1
-                for S in F:
-                    common &= S
-                d = 0
-                while common > 0:
-                    if common & 1:
-                        out.setdefault(d, prefix)
-                    common >>= 1
-                    d += 1
+                _record_common(F, prefix, out)
                 return
             for i in range(n):
                 if left >> i & 1:
