@@ -250,9 +250,8 @@ class TransitionSystem:
             return self._cover[key]
         r = None
         if self.N <= 12:
-            radii = [self.covering_radius(j, t) for n in range(1, self.N + 1)
-                     for t in itertools.combinations(range(self.N), n) if self.team_power_ok(t, j)]
-            r = min(radii) if radii else None
+            best = self.smallest_team(j)
+            r = None if best is None else best[1]
         else:
             power = 0.0
             for c, i in sorted((self.covering_radius(j, (i,)), i) for i in range(self.N)):
