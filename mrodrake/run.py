@@ -61,6 +61,9 @@ def add_subparser(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--plan", metavar="PLAN.json", default=None, help="execute this plan instead of planning")
     p.add_argument("--suffix-cycles", type=int, default=1, metavar="N", help="suffix cycles to simulate (default 1)")
     p.add_argument("--seed", type=int, default=0, help="seed of the planner and of P_s goal points (default 0)")
+    p.add_argument("--execution", choices=["sequential", "concurrent"], default="sequential",
+                   help="one primitive at a time (the paper, default), or every primitive as soon as the "
+                   "primitives it depends on are done, concurrent motions on reserved corridors")
     p.set_defaults(func=run)
     return p
 
@@ -82,7 +85,7 @@ def run(args: argparse.Namespace) -> int:
         plan = plan_scenario(scenario, args.planner, seed=None if args.planner == "exact" else args.seed,
                              suffix_cycles=args.suffix_cycles, layout_seed=args.seed)
     print(plan.summary(), file=sys.stderr)
-    mission = Mission(scenario, plan, suffix_cycles=args.suffix_cycles, seed=args.seed)
+    mission = Mission(scenario, plan, suffix_cycles=args.suffix_cycles, seed=args.seed, execution=args.execution)
 
     from tqdm import tqdm
 

@@ -36,7 +36,7 @@ def base_row(task: MissionTask) -> dict:
         "scenario": task.instance.key, "source": task.instance.source, "robots": len(s.robots),
         "objects": len(s.objects), "regions": len(s.regions), "planner": task.planner,
         "plan_seed": task.plan_seed, "layout_seed": task.layout_seed, "draw": task.draw,
-        "suffix_cycles": task.suffix_cycles,
+        "suffix_cycles": task.suffix_cycles, "execution": task.execution,
         "mass_factor_min": float(factors[:, 0].min()), "mass_factor_max": float(factors[:, 0].max()),
         "friction_factor_min": float(factors[:, 1].min()), "friction_factor_max": float(factors[:, 1].max()),
         "frequency_factor_min": float(factors[:, 2].min()), "frequency_factor_max": float(factors[:, 2].max()),
@@ -104,7 +104,8 @@ def execute(task: MissionTask) -> dict:
         stage = "mission"
         if task.inject == "raise":
             raise RuntimeError(f"injected failure (spec inject[{task.index}])")
-        mission = Mission(scenario, plan, suffix_cycles=task.suffix_cycles, seed=task.layout_seed)
+        mission = Mission(scenario, plan, suffix_cycles=task.suffix_cycles, seed=task.layout_seed,
+                          execution=task.execution)
 
         def stop() -> None:
             stopped.set()

@@ -102,6 +102,7 @@ class CampaignSpec:
     iterations: PosInt | None = None
     plan_time_limit: PosNum | None = None
     suffix_cycles: NonNegInt = 1
+    execution: list[Literal["sequential", "concurrent"]] = dc_field(default_factory=lambda: ["sequential"])
     time_limit: PosNum = 600.0
     seeds: Seeds = dc_field(default_factory=Seeds)
     randomize: Randomize = dc_field(default_factory=Randomize)
@@ -138,6 +139,7 @@ class MissionTask:
     suffix_cycles: int
     time_limit: float
     inject: str | None = None
+    execution: str = "sequential"
     run_dir: str | None = None
     #: wall-clock time (time.time()) at which the engine dispatched the mission: the soft limit counts from
     #: it, as the engine's kill does, so a slow worker start-up (Ray) is inside both (a cluster's clocks are
@@ -154,7 +156,7 @@ class MissionTask:
         data = {"scenario": dataclasses.asdict(self.instance.scenario), "plan_seed": self.plan_seed,
                 "layout_seed": self.layout_seed, "params": self.params, "planner": self.planner,
                 "iterations": self.iterations, "plan_time_limit": self.plan_time_limit,
-                "suffix_cycles": self.suffix_cycles,
+                "suffix_cycles": self.suffix_cycles, "execution": self.execution,
                 "time_limit": self.time_limit, "inject": self.inject}
         return hashlib.sha256(json.dumps(data, sort_keys=True, default=str).encode()).hexdigest()[:16]
 
@@ -259,6 +261,9 @@ def load_campaign(path: str | Path) -> Campaign:
     for name in ("iterations", "plan_time_limit"):
         if spec.planner == "exact" and getattr(spec, name) is not None:
             raise UserError(f"{where((name,))}: only for the stylus planner")
+    modes = list(dict.fromkeys(spec.execution))
+    if not modes:
+        raise UserError(f"{where(('execution',))}: give at least one of sequential, concurrent")
     tasks = []
     for inst, seeds in _instances(spec, where, path.resolve().parent):
         for ps in seeds.plan.values():
@@ -266,9 +271,11 @@ def load_campaign(path: str | Path) -> Campaign:
                 for d in range(seeds.draws):
                     mid = f"{inst.key}-p{ps}-l{ls}-d{d}"
                     params, drawn = draw_parameters(spec, inst.scenario, mid)
-                    tasks.append(MissionTask(len(tasks), mid, inst, ps, ls if drawn is None else drawn, d, params,
-                                             spec.planner, spec.iterations, spec.plan_time_limit,
-                                             spec.suffix_cycles, float(spec.time_limit), None))
+                    for mode in modes:
+                        tasks.append(MissionTask(len(tasks), mid if mode == "sequential" else f"{mid}-{mode}", inst,
+                                                 ps, ls if drawn is None else drawn, d, params, spec.planner,
+                                                 spec.iterations, spec.plan_time_limit, spec.suffix_cycles,
+                                                 float(spec.time_limit), None, execution=mode))
     for idx, mode in spec.inject.items():
         if idx >= len(tasks):
             raise UserError(f"{where(('inject', idx))}: mission index {idx} out of range (the campaign has "

@@ -17,6 +17,22 @@ def _num(x, fmt: str = ".3g") -> str:
     return "" if x is None or (isinstance(x, float) and not math.isfinite(x)) else format(float(x), fmt)
 
 
+def _makespans(df) -> str:
+    """Per family: missions both modes finished, and the median / min / max ratio of simulated mission time."""
+    import pandas as pd
+
+    seq = df[(df["execution"] == "sequential") & df["ok"].astype(bool)].set_index("mission_id")
+    con = df[(df["execution"] == "concurrent") & df["ok"].astype(bool)].copy()
+    con["base"] = con["mission_id"].str.removesuffix("-concurrent")
+    con = con[con["base"].isin(seq.index)]
+    rows = []
+    for name, g in con.groupby("family", sort=False):
+        r = pd.to_numeric(g["sim_seconds"]).to_numpy() / pd.to_numeric(seq.loc[g["base"], "sim_seconds"]).to_numpy()
+        rows.append([name, len(g), _num(float(pd.Series(r).median()), ".3f"), _num(float(r.min()), ".3f"),
+                     _num(float(r.max()), ".3f")])
+    return _md_table(["family", "pairs", "median ratio", "min", "max"], rows)
+
+
 def summarize(df, meta: dict, prims=None) -> str:
     """The campaign summary (Markdown): totals, success per family and size, failures by kind with one
     example each, clearance / gap / speed / wall-time distributions; with ``prims`` (primitives.csv) the
@@ -49,6 +65,9 @@ def summarize(df, meta: dict, prims=None) -> str:
         size.append([f"{r}/{o}/{k}", len(g), int(g["ok"].sum()), f"{g['ok'].mean():.0%}"])
     parts += ["## Success by size (robots/objects/regions)", "",
               _md_table(["size", "missions", "ok", "success"], size), ""]
+    if "execution" in df.columns and df["execution"].nunique() > 1:
+        parts += ["## Makespan, concurrent vs sequential (same plan and draw)", "",
+                  _makespans(df), ""]
     failed = df[~df["ok"].astype(bool)]
     parts += ["## Failures by kind", ""]
     if len(failed):

@@ -94,9 +94,11 @@ def entity_free_space(
     others: Sequence[Disk] = (),
     safety: float = DEFAULT_SAFETY,
     margin: float = DEFAULT_MARGIN,
+    confine: Polygon | None = None,
 ) -> EntityFreeSpace:
     """F = (W_f \\ O) ⊖ r for an entity of ``radius`` moving from ``start`` (in ``src_region``) to
-    ``goal`` (in ``dst_region``), the ``others`` being static; the component of F containing ``start``.
+    ``goal`` (in ``dst_region``), the ``others`` being static; the component of F containing ``start``
+    (of F ∩ ``confine`` if given: the corridor of a concurrent motion, :mod:`mrodrake.execution.schedule`).
 
     Walls, workspace obstacles and the other regions are enlarged by r + ``margin`` (see the module
     docstring), the other entities by r.  Raises UserError when the start is not in F or the goal is not
@@ -117,6 +119,10 @@ def entity_free_space(
             obstacles.append((reg.name, disk(reg.center, reg.radius)))
     parts, enlarged = free_space_parts(boundary, [g for _, g in obstacles], [(d.center, d.radius) for d in others],
                                        r, float(margin), safety)
+    if confine is not None:
+        cut = [p.intersection(confine) for p in parts]
+        parts = [g for c in cut for g in (c.geoms if hasattr(c, "geoms") else [c]) if isinstance(g, Polygon)
+                 and not g.is_empty]
     obstacles += [(d.name, disk(d.center, d.radius)) for d in others]
     p_start, p_goal = Point(start), Point(goal)
     comp = next((p for p in parts if p.contains(p_start)), None)

@@ -49,7 +49,16 @@ from mrodrake.control.windows import (
 from mrodrake.errors import UserError
 from mrodrake.execution.commands import PrimitiveRecord, SyncCommand, TaskCommand
 from mrodrake.execution.monitor import WordMonitor, entity_regions, label_of
-from mrodrake.geometry import polygon, workspace_free_space
+from mrodrake.execution.schedule import (
+    Corridor,
+    Execution,
+    Job,
+    Request,
+    assign_corridors,
+    dependency_graph,
+    task_order,
+)
+from mrodrake.geometry import disk, polygon, workspace_free_space
 from mrodrake.planning.placement import OpKind, PlacedOp, Placement, layout_slots
 from mrodrake.planning.steps import StepSpec
 from mrodrake.ts import Transport
@@ -126,17 +135,21 @@ class Motion:
     departed: bool = False
     world: tuple = ()
     waypoint: tuple | None = None
+    corridor: Corridor | None = None
 
 
 @dataclass(frozen=True)
 class Active:
-    """The primitive in execution: its placed op, its step, its phase and its motion."""
+    """A primitive in execution: its placed op, its step, its phase and its motion; ``uid``: its job
+    (concurrent execution), ``tried``: the corridor version at which it last found no corridor."""
 
     op: PlacedOp
     step: StepSpec
     phase: Phase
     t0: float
     motion: Motion | None = None
+    uid: int = -1
+    tried: int = -1
 
 
 @dataclass(frozen=True)
@@ -161,6 +174,11 @@ class ExecState:
     message: str = ""
     version: int = 0
     episode: int = 0
+    running: tuple = ()     # concurrent execution: the jobs in execution (Active values)
+    done: frozenset = frozenset()
+    next_job: int = 0       # concurrent execution: jobs before this uid have started
+    word_step: int = 0      # concurrent execution: the executed steps before it are closed on the monitor
+    corridors: int = 0      # concurrent execution: bumped whenever a job ends (corridors may have come free)
 
     def __deepcopy__(self, memo):
         return self
@@ -189,21 +207,27 @@ class _Edit:
         self.step_idx, self.queue, self.active = self.st.step_idx, self.st.queue, self.st.active
         self.status, self.message = self.st.status, self.st.message
         self.version, self.episode = self.st.version, self.st.episode
+        self.running, self.done, self.next_job = list(self.st.running), set(self.st.done), self.st.next_job
+        self.word_step, self.corridors = self.st.word_step, self.st.corridors
+        self.grants: dict[int, Corridor] = {}
 
     def freeze(self) -> ExecState:
         return ExecState(self.step_idx, self.queue, self.active, self.tasks, self.syncs, self.coupled,
                          self.engaged, self.docked, self.grasp_open, self.monitor, tuple(self.events),
                          tuple(self.grasps), tuple(self.primitives), self.status, self.message, self.version,
-                         self.episode)
+                         self.episode, tuple(self.running), frozenset(self.done), self.next_job, self.word_step,
+                         self.corridors)
 
 
 class Sequencer:
     """Executes ``placement`` (the placed steps of ``plan``) for ``scenario``; ``couplings`` are the
-    (object, team) pairs of the plan's transports, each with a team plant and controller."""
+    (object, team) pairs of the plan's transports, each with a team plant and controller.  ``execution``:
+    one primitive at a time (the paper), or every job of :func:`~mrodrake.execution.schedule.dependency_graph`
+    as soon as its predecessors are done, concurrent motions on their corridors."""
 
     def __init__(self, scenario, ts, words, placement: Placement, couplings: Sequence[tuple[int, tuple[int, ...]]],
                  *, rest_speed: float = REST_SPEED, dock_tol: float = DOCK_TOL, goal_tol: float = GOAL_TOL,
-                 time_limit: tuple[float, float] = (1500.0, 10.0)):
+                 time_limit: tuple[float, float] = (1500.0, 10.0), execution: Execution = Execution.SEQUENTIAL):
         self.scenario, self.ts, self.words, self.placement = scenario, ts, words, placement
         self.steps = [p.step for p in placement.steps]
         self.robots, self.objects = list(scenario.robot_names), list(scenario.object_names)
@@ -220,6 +244,16 @@ class Sequencer:
         self.controllers = ([f"nav_{r}" for r in self.robots]
                             + [self.team_name(j, t) + "_ctrl" for j, t in self.couplings])
         self.plants = self.entities + [self.team_name(j, t) for j, t in self.couplings]
+        self.execution = Execution(execution)
+        self.jobs: tuple[Job, ...] = ()
+        self.block_end = tuple(range(len(self.steps)))
+        if self.execution is Execution.CONCURRENT:
+            order = task_order(words, placement)
+            self.jobs, self.block_end = dependency_graph(ts, words, placement, order), order.block_end
+        self.block_start = tuple(min(t for t in range(s + 1) if self.block_end[t] == self.block_end[s])
+                                 for s in range(len(self.steps)))
+        ws = scenario.workspace
+        self._floor = polygon(ws.boundary)
 
     # ------------------------------------------------------------------ names
     def team_name(self, j: int, team: Sequence[int]) -> str:
@@ -251,7 +285,10 @@ class Sequencer:
             if not np.all(np.isfinite(X)):
                 raise _Failure(f"non-finite entity state at t={t:.2f}")
             self._monitor(ed, t, X)
-            self._advance(ed, t, X)
+            if self.execution is Execution.CONCURRENT:
+                self._advance_concurrent(ed, t, X)
+            else:
+                self._advance(ed, t, X)
         except _Failure as exc:
             self._fail(ed, t, str(exc))
         return ed.freeze()
@@ -263,6 +300,8 @@ class Sequencer:
         if st.status is not Status.RUNNING:
             return st
         ed = _Edit(st)
+        if ed.active is None and ed.running:
+            ed.active = ed.running[0]
         if ed.active is not None:
             a = ed.active
             where = f"{self._op_text(a.op)} (step {a.step.index}, plan step {a.step.plan_step})"
@@ -279,7 +318,13 @@ class Sequencer:
         return tuple(int(k) for k in reg) + tuple(st.docked.get(i, -1) for i in range(self.N))
 
     def steps_done(self, st: ExecState) -> int:
+        """Executed steps complete (concurrent execution: those whose jobs, and all before them, are done)."""
         return len(self.steps) if st.status is Status.DONE else max(0, st.step_idx)
+
+    def in_execution(self, st: ExecState) -> tuple[Active, ...]:
+        """The primitives in execution now."""
+        return tuple(st.running) if self.execution is Execution.CONCURRENT else (
+            () if st.active is None else (st.active,))
 
     def _advance(self, ed: _Edit, t: float, X: np.ndarray) -> None:
         while ed.status is Status.RUNNING:
@@ -301,6 +346,108 @@ class Sequencer:
                 return
             ed.active = None
 
+    def _advance_concurrent(self, ed: _Edit, t: float, X: np.ndarray) -> None:
+        """Progress every job in execution, then start every job whose predecessors are done (a visible job
+        first closes the executed steps before its own on the monitor); repeat until nothing changes."""
+        jobs = self.jobs
+        while ed.status is Status.RUNNING:
+            self._grant(ed, X)
+            changed, k = False, 0
+            while k < len(ed.running):
+                ed.active = ed.running[k]
+                if self._run(ed, t, X):
+                    self._job_done(ed, X, ed.running.pop(k))
+                    changed = True
+                else:
+                    ed.running[k] = ed.active
+                    k += 1
+                ed.active = None
+            started = {a.uid for a in ed.running}
+            for job in jobs[ed.next_job:]:
+                if job.uid in ed.done or job.uid in started or not all(p in ed.done for p in job.preds):
+                    continue
+                if job.visible:
+                    self._close_steps(ed, X, self.block_start[job.step])
+                ed.running.append(Active(job.op, self.steps[job.step], Phase.START, t, uid=job.uid))
+                started.add(job.uid)
+                changed = True
+            while ed.next_job < len(jobs) and (ed.next_job in ed.done or ed.next_job in started):
+                ed.next_job += 1
+            pending = next((j for j in jobs if j.uid not in ed.done), None)
+            ed.step_idx = len(self.steps) if pending is None else pending.step
+            if pending is None:
+                self._close_steps(ed, X, len(self.steps))
+                got = self.discrete_state(ed.freeze(), X)
+                if self.steps and got != tuple(self.steps[-1].dst):
+                    shown = self.ts.state_dict(got) if min(got[: self.N + self.M]) >= 0 else got
+                    raise _Failure(f"step {self.steps[-1].index}: executed state {shown} differs from the plan's "
+                                   f"{self.ts.state_dict(self.steps[-1].dst)}")
+                ed.status, ed.message = Status.DONE, "mission complete"
+                return
+            if not changed:
+                return
+
+    def _close_steps(self, ed: _Edit, X: np.ndarray, upto: int) -> None:
+        """Close the blocks of executed steps before ``upto`` on the monitor: a step without a visible crossing
+        reads the label once; the run must admit the planned NBA state at every block's end."""
+        while ed.word_step < upto:
+            spec = self.steps[self.block_end[ed.word_step]]
+            ed.monitor.end_step()
+            if not ed.monitor.admits(spec.dst_q):
+                raise _Failure(f"step {spec.index}: the monitored NBA run {ed.monitor.states} does not contain "
+                               f"the plan's NBA state {spec.dst_q}")
+            ed.monitor.begin_step()
+            ed.word_step = self.block_end[ed.word_step] + 1
+
+    def _job_done(self, ed: _Edit, X: np.ndarray, a: Active) -> None:
+        """Record a finished job; the bodies of a navigation or transport must be in its target region."""
+        ed.done.add(a.uid)
+        ed.corridors += 1
+        if a.op.kind in (OpKind.NAVIGATE, OpKind.TRANSPORT):
+            act = a.op.action
+            reg = entity_regions(self.centers, self.radii, X[:, :2], self.region_radii, tol=1e-6)
+            off = [self.entities[b] for b in self.jobs[a.uid].bodies if reg[b] != act.dst]
+            if off:
+                raise _Failure(f"{self._op_text(a.op)} (step {a.step.index}): {', '.join(off)} not in "
+                               f"{self.scenario.region_names[act.dst]} at its end")
+
+    def _grant(self, ed: _Edit, X: np.ndarray) -> None:
+        """Corridors (:func:`~mrodrake.execution.schedule.assign_corridors`) for every navigation or transport
+        in execution that is ready to move and has not asked since a job last ended, together."""
+        requests, failed = [], set()
+        for a in ed.running:
+            if a.motion is not None or a.uid in ed.grants or a.tried == ed.corridors:
+                continue
+            op, act = a.op, a.op.action
+            if op.kind is OpKind.NAVIGATE and a.phase is Phase.START:
+                entity, team, radius = act.robot, (), float(self.radii[act.robot])
+            elif op.kind is OpKind.TRANSPORT and a.phase is Phase.ENGAGE:
+                name = self.team_name(act.obj, act.team)
+                offsets = np.asarray(ed.syncs[name].offsets, dtype=float)
+                entity, team, radius = self.N + act.obj, tuple(act.team), self._team_radius(act.team, offsets,
+                                                                                             act.obj)
+            else:
+                continue
+            others = self._disks(X, {entity, *team})
+            try:
+                free = entity_free_space(self.scenario, radius, X[entity, :2], op.goal, act.src, act.dst, others)
+            except UserError:  # alone, the motion starts and reports why it cannot move; else it waits
+                if not any(b.motion is not None for b in ed.running):
+                    ed.grants[a.uid] = Corridor(None, self._floor)
+                failed.add(a.uid)
+                continue
+            regions = tuple((disk(self.centers[k], self.region_radii[k] + self.approach[k]),
+                             disk(self.centers[k], self.region_radii[k])) for k in (act.src, act.dst))
+            requests.append(Request(a.uid, free.polygon, X[entity, :2].copy(), np.asarray(op.goal, dtype=float),
+                                    radius, regions))
+        held = [a.motion.corridor.body for a in ed.running if a.motion is not None and a.motion.corridor is not None]
+        busy = shapely.union_all(held) if held else None
+        if requests:
+            ed.grants.update(assign_corridors(requests, self._floor, busy, DEFAULT_MARGIN))
+        asked = {rq.uid for rq in requests} | failed
+        ed.running = [replace(a, tried=ed.corridors) if a.uid in asked and a.uid not in ed.grants else a
+                      for a in ed.running]
+
     def _end_step(self, ed: _Edit, X: np.ndarray) -> None:
         spec = self.steps[ed.step_idx]
         ed.monitor.end_step()
@@ -319,7 +466,8 @@ class Sequencer:
             return
         lab = label_of(ed.monitor.regions, self.K)
         props = [p for b, p in enumerate(self.ts.propositions) if lab >> b & 1]
-        spec = self.steps[ed.step_idx] if 0 <= ed.step_idx < len(self.steps) else None
+        k = min(ed.word_step, len(self.steps) - 1) if self.execution is Execution.CONCURRENT else ed.step_idx
+        spec = self.steps[k] if 0 <= k < len(self.steps) else None
         self._event(ed, "label", t, spec, ok=bool(ed.monitor.run), propositions=" ".join(props),
                     nba_states=" ".join(map(str, ed.monitor.states)))
         if not ed.monitor.run:
@@ -330,6 +478,7 @@ class Sequencer:
             self._primitive_event(ed, t, ok=False, detail=msg)
             ed.active = None
         ed.status, ed.message = Status.FAILED, msg
+        ed.running = []
         for c in ed.tasks:
             ed.tasks[c] = None
 
@@ -403,6 +552,12 @@ class Sequencer:
         centers, radii = disk_obstacles(X, self.radii, radius, [entity, *exclude], c, R)
         return c, R, centers, radii
 
+    def _ring(self, m: Motion, k: int) -> float:
+        """Width of the approach ring of region k (the source or destination of ``m``) that ``m`` may use."""
+        if m.corridor is None or m.corridor.rings[0 if k == m.src else 1]:
+            return float(self.approach[k])
+        return 0.0
+
     def _team_radius(self, team: Sequence[int], offsets: np.ndarray, j: int) -> float:
         return max(float(self.radii[self.N + j]),
                    max((float(np.hypot(*offsets[m])) + self.radii[i] for m, i in enumerate(team)), default=0.0))
@@ -418,7 +573,13 @@ class Sequencer:
         offsets = tuple(map(tuple, np.asarray(offsets, dtype=float).reshape(-1, 2)))
         limit = self._limit(float(np.hypot(*(goal - start))))
         m = Motion(op.kind, entity, team, controller, plant, src, dst, radius, tuple(start), tuple(goal), t, limit,
-                   self._new_episode(ed), None, offsets=offsets)
+                   0, None, offsets=offsets)
+        if self.execution is Execution.CONCURRENT:
+            corridor = ed.grants.pop(ed.active.uid, None)
+            if corridor is None:
+                return None
+            m = replace(m, corridor=corridor)
+        m = replace(m, episode=self._new_episode(ed))
         self._unfreeze(ed, plant)
         return self._exit(ed, X, m) or self._point_world(ed, X, m)
 
@@ -426,7 +587,8 @@ class Sequencer:
         """Exit legs of the local law in the source region's approach disk to the nearest point EXIT_CLEARANCE
         clear of every other entity, when the start is nearer than that to one (None: not needed, or no path;
         the point-world law then starts where the entity is)."""
-        c, R, centers, radii = self._local_world(X, m.entity, m.radius, m.src, m.team, self.approach[m.src])
+        ring = self._ring(m, m.src)
+        c, R, centers, radii = self._local_world(X, m.entity, m.radius, m.src, m.team, ring)
         x = X[m.entity, :2]
         if not len(centers) or np.min(np.linalg.norm(centers - x, axis=1) - radii) >= EXIT_CLEARANCE:
             return None
@@ -434,7 +596,7 @@ class Sequencer:
             legs = exit_path(x, centers, radii, c, R, EXIT_CLEARANCE, toward=np.asarray(m.goal))
         except ValueError:
             return None
-        m = replace(m, legs=tuple(map(tuple, legs)), leg=0, extra=float(self.approach[m.src]), exiting=True)
+        m = replace(m, legs=tuple(map(tuple, legs)), leg=0, extra=ring, exiting=True)
         ed.tasks[m.controller] = TaskCommand(self._leg_task(X, m), m.episode)
         return m
 
@@ -449,7 +611,8 @@ class Sequencer:
         start, goal, src, dst = X[entity, :2].copy(), np.asarray(m.goal, dtype=float), m.src, m.dst
         name = self.entities[entity]
         try:
-            free = entity_free_space(self.scenario, radius, start, goal, src, dst, others)
+            confine = None if m.corridor is None else m.corridor.confine
+            free = entity_free_space(self.scenario, radius, start, goal, src, dst, others, confine=confine)
             pw = self._map(free)
             if not m.departed and not inside_circle(pw, start)[0]:
                 c, R, centers, radii = self._local_world(X, entity, radius, src, team)
@@ -573,16 +736,17 @@ class Sequencer:
         if m.kind not in (OpKind.NAVIGATE, OpKind.TRANSPORT) or m.legs is not None or m.settle_tried:
             return m
         k, x = m.dst, X[m.entity, :2]
-        depth = self.region_radii[k] + self.approach[k] - math.hypot(*(x - self.centers[k])) - m.radius
+        ring = self._ring(m, k)
+        depth = self.region_radii[k] + ring - math.hypot(*(x - self.centers[k])) - m.radius
         slow = math.hypot(*X[m.entity, 2:]) <= self.rest_speed
         if depth < SETTLE_DEPTH and not (slow and depth >= 0.1 * SETTLE_DEPTH):
             return m
-        c, R, centers, radii = self._local_world(X, m.entity, m.radius, k, m.team, self.approach[k])
+        c, R, centers, radii = self._local_world(X, m.entity, m.radius, k, m.team, ring)
         try:
             legs = local_path(x, np.asarray(m.goal), centers, radii, c, R)
         except ValueError:
             return replace(m, settle_tried=True)
-        m = replace(m, legs=tuple(map(tuple, legs)), leg=0, settle_tried=True, extra=float(self.approach[k]))
+        m = replace(m, legs=tuple(map(tuple, legs)), leg=0, settle_tried=True, extra=ring)
         ed.tasks[m.controller] = TaskCommand(self._leg_task(X, m), m.episode)
         return m
 
@@ -674,6 +838,12 @@ class Sequencer:
             return False
         return self._wait(ed, t, X, a)
 
+    def _moving(self, a: Active, m: Motion, t: float) -> Active:
+        """``a`` with its motion started at t (concurrent execution: a primitive's time starts when its motion
+        got its corridor, not while it waited for one)."""
+        t0 = t if self.execution is Execution.CONCURRENT else a.t0
+        return replace(a, phase=Phase.MOVING, motion=m, t0=t0)
+
     def _engage(self, ed: _Edit, X: np.ndarray, j: int, team: tuple) -> bool:
         """Couple object j and ``team`` to their team plant (synced to the object with the members' actual
         offsets, so nothing jumps); True if it already was coupled."""
@@ -736,10 +906,12 @@ class Sequencer:
     def _navigate(self, ed: _Edit, t: float, X: np.ndarray, a: Active) -> bool:
         op, act = a.op, a.op.action
         if a.phase is Phase.START:
+            if a.tried == ed.corridors:
+                return False
             r = act.robot
             m = self._start_point_world(ed, t, X, op, entity=r, team=(), radius=float(self.radii[r]), src=act.src,
                                         dst=act.dst, plant=self.robots[r], controller=f"nav_{self.robots[r]}")
-            ed.active = replace(a, phase=Phase.MOVING, motion=m)
+            ed.active = a if m is None else self._moving(a, m, t)
             return False
         return self._wait(ed, t, X, a)
 
@@ -752,13 +924,15 @@ class Sequencer:
                 return False
             a = ed.active = replace(a, phase=Phase.ENGAGE)
         if a.phase is Phase.ENGAGE:
+            if a.tried == ed.corridors:
+                return False
             self._route(ed, j, team)
             name = self.team_name(j, team)
             offsets = np.asarray(ed.syncs[name].offsets, dtype=float)
             m = self._start_point_world(ed, t, X, op, entity=self.N + j, team=team,
                                         radius=self._team_radius(team, offsets, j), src=act.src, dst=act.dst,
                                         plant=name, controller=name + "_ctrl", offsets=offsets)
-            ed.active = replace(a, phase=Phase.MOVING, motion=m)
+            ed.active = a if m is None else self._moving(a, m, t)
             return False
         return self._wait(ed, t, X, a)
 

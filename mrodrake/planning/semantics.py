@@ -378,6 +378,20 @@ class ExecutedWords:
             self._lattices.append(nodes)
         return cid
 
+    def concurrent_reach(self, q: int, s: State, groups: Sequence[Sequence[Action]]) -> frozenset:
+        """The subsets of NBA states reachable from q over a step from s whose visible actions run as
+        ``groups`` one after another, the crossings of all bodies of one group in any interleaving (each
+        action's own entry order kept): one subset per interleaving (the empty one if a word leaves the
+        task)."""
+        F, mask = frozenset([1 << q]), self.ts.label_mask(s) & self.relevant
+        if not any(self.crossings(a) for g in groups for a in g):
+            return frozenset([self.delta(1 << q, mask)])
+        for g in groups:
+            cross = tuple(c for a in g for c in self.crossings(a))
+            if cross:
+                F, mask = self._after_action(F, mask, cross)
+        return F
+
     def _after_action(self, F: frozenset, mask: int, cross: tuple) -> tuple[frozenset, int]:
         """The family of subsets after one action's crossings, over all their interleavings, and the mask."""
         return self._after(F, mask, self._cross_id(cross))

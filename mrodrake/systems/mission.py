@@ -25,6 +25,7 @@ from threadpoolctl import threadpool_limits
 
 from mrodrake.control.adaptive import AdaptiveGains
 from mrodrake.errors import UserError
+from mrodrake.execution.schedule import Execution
 from mrodrake.execution.sequencer import ExecState, Sequencer, Status, couplings_of
 from mrodrake.planning.placement import place_run
 from mrodrake.planning.plan import Plan, PlanVerificationError, task_nba, task_words
@@ -160,7 +161,8 @@ class Mission:
 
     def __init__(self, scenario: Scenario, plan, suffix_cycles: int = 1, seed: int = 0, *, log_period: float = 0.5,
                  check_period: float = 0.5, accuracy: float = 1e-3, max_step: float = 2.0,
-                 integrator: str = "runge_kutta3", rest_speed: float | None = None):
+                 integrator: str = "runge_kutta3", rest_speed: float | None = None,
+                 execution: Execution | str = Execution.SEQUENTIAL):
         if suffix_cycles < 0:
             raise UserError(f"--suffix-cycles: must be >= 0, got {suffix_cycles}")
         if plan.scenario != scenario.name:
@@ -177,7 +179,9 @@ class Mission:
                 self.placement = place_run(self.ts, expand_steps(plan, suffix_cycles), seed=self.seed)
         self.placement_seconds = time.perf_counter() - t0
         kw = {} if rest_speed is None else {"rest_speed": rest_speed}
-        self.sequencer = Sequencer(scenario, self.ts, self.words, self.placement, couplings_of(plan), **kw)
+        self.execution = _execution(execution)
+        self.sequencer = Sequencer(scenario, self.ts, self.words, self.placement, couplings_of(plan),
+                                   execution=self.execution, **kw)
 
         b = DiagramBuilder()
         gains = AdaptiveGains.from_scenario(scenario.control)
@@ -237,8 +241,9 @@ class Mission:
         st = self.exec_state()
         t = self.simulator.get_context().get_time()
         doing = st.status.value
-        if st.active is not None:
-            doing = f"{self.sequencer._op_text(st.active.op)} ({st.active.phase.value})"
+        running = self.sequencer.in_execution(st)
+        if running:
+            doing = "; ".join(f"{self.sequencer._op_text(a.op)} ({a.phase.value})" for a in running)
         return (f"t = {t:7.1f} s | steps {self.steps_done():2d}/{self.total_steps} | wall {self.wall_seconds:6.1f} s"
                 f" | {doing}")
 
@@ -333,6 +338,15 @@ class Mission:
         return MissionLog(self.scenario, self.plan, traj, sig, events, grasps, ok, message, final, expected,
                           self.steps_done(), self.total_steps, t_now, self.wall_seconds, list(st.primitives),
                           st.monitor.states)
+
+
+def _execution(value) -> Execution:
+    if isinstance(value, Execution):
+        return value
+    try:
+        return Execution(value)
+    except ValueError:
+        raise UserError(f"--execution: unknown mode '{value}' (expected 'sequential' or 'concurrent')") from None
 
 
 def _simulation_failure(exc: BaseException) -> str:

@@ -1,0 +1,344 @@
+"""Concurrent execution of a placed run: the job dependency graph and the corridors of concurrent motions
+(pure Python, no Drake; beyond the paper, whose Sec. III-A moves one entity at a time).
+
+Every placed primitive of the whole executed run is a :class:`Job`.  A job may start once its predecessors
+are done; the predecessors of job j are the earlier jobs (in the sequential order) that
+
+* share a body with it (robot, object, team member: one controller per body, and a grasp docks at the
+  object's actual position);
+* share a region with it (source, destination, or the region of a release, grasp or room move: the spots
+  of the placement were chosen one primitive after another, each seeing the earlier ones where they end);
+* or are *visible* to the task (a region-changing action some crossing of which AP_φ sees) and precede it
+  in the chain of visible jobs.  Consecutive visible actions of one TS step form one *group* when every
+  interleaving of all their crossings still reaches the plan's NBA state
+  (:meth:`~mrodrake.planning.semantics.ExecutedWords.concurrent_reach`); groups run one after another in
+  the sequential order.  Jobs AP_φ cannot see change no letter, so the executed word of any concurrent run
+  is a word of the sequential semantics, read with the same monitor.
+
+Corridors keep the paper's proof (Theorem 1 is for one mover among static obstacles).  The motions
+(navigations, transports) that are ready at one tick ask together (:func:`assign_corridors`).  One motion
+and nothing else moving: it runs on its whole free space F, and no other motion starts until it ends.
+Otherwise the floor not held by running motions is split into the Voronoi cells of the askers' grid routes;
+each motion gets its cell shrunk by its covering radius r, the margin and :data:`GAP` (its centre
+positions), if that still connects its start to its goal and holds its regions (with or without their
+approach rings).  Its point-world map is built on F ∩ corridor, a static free space: Theorem 1 applies to
+it alone, its bodies stay inside the cell (the map's margin covers the map's numerical error, as for
+walls), and cells are disjoint, so no two concurrent bodies meet.  Motions that get no corridor wait until
+a job ends.  Releases, grasps and room moves stay inside their region, which no other running job touches,
+and every motion's F keeps r + margin off the regions other than its own two.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from enum import Enum
+
+import numpy as np
+import shapely
+from shapely.geometry import LineString, Point, Polygon
+
+from mrodrake.control.windows import grid_path
+from mrodrake.geometry import DISK_QUAD_SEGS
+from mrodrake.planning.placement import OpKind, PlacedOp, Placement
+from mrodrake.planning.semantics import bodies
+from mrodrake.planning.steps import StepSpec
+from mrodrake.ts import TransitionSystem
+
+#: Grid steps (m) tried in turn for a concurrent motion's route.
+ROUTE_STEPS = (1.0, 0.5)
+#: Spacing (m) of the route points whose Voronoi cells split the floor between concurrent motions.
+ROUTE_SAMPLE = 1.0
+#: Extra gap (m) between the bodies' corridors of concurrent motions (polygon rounding).
+GAP = 0.05
+#: Most bodies whose crossings one task group may interleave (bounds the crossing lattice, 3^bodies nodes).
+GROUP_BODIES = 8
+
+
+class Execution(Enum):
+    """How the sequencer runs a placed run: one primitive at a time (the paper), or every job as soon as its
+    predecessors are done."""
+
+    SEQUENTIAL = "sequential"
+    CONCURRENT = "concurrent"
+
+
+@dataclass(frozen=True)
+class Job:
+    """One placed primitive of the run: ``uid`` (position in the sequential order), ``step`` (index of its
+    executed step), the bodies and regions it uses, its task group (−1: AP_φ cannot see it) and the uids of
+    its predecessors."""
+
+    uid: int
+    step: int
+    op: PlacedOp
+    bodies: frozenset
+    regions: frozenset
+    group: int
+    preds: tuple[int, ...]
+
+    @property
+    def visible(self) -> bool:
+        return self.group >= 0
+
+    @property
+    def moves_between_regions(self) -> bool:
+        return self.op.kind in (OpKind.NAVIGATE, OpKind.TRANSPORT)
+
+
+@dataclass(frozen=True)
+class Corridor:
+    """Where a concurrent motion may go: ``confine`` holds its centre positions (intersected with its free
+    space; None: all of it, for a motion that runs alone), ``body`` everything its bodies may cover
+    (``confine`` grown by the covering radius and the margin, and the approach disks it uses; the whole
+    floor for a motion alone); ``rings``: whether it may use the approach ring of its source and of its
+    destination (else its local legs stay inside the region)."""
+
+    confine: Polygon | None
+    body: Polygon
+    rings: tuple[bool, bool] = (True, True)
+
+
+def op_bodies(ts: TransitionSystem, op: PlacedOp) -> frozenset:
+    """Entities (robots 0..N−1, objects N..) a primitive moves or holds."""
+    a = op.action
+    if op.kind in (OpKind.NAVIGATE, OpKind.TRANSPORT):
+        return frozenset(bodies(ts, a))
+    if op.kind in (OpKind.GRASP, OpKind.RELEASE):
+        return frozenset((a.robot, ts.N + a.obj))
+    return frozenset((op.entity, *op.team))
+
+
+def op_regions(op: PlacedOp) -> frozenset:
+    if op.kind in (OpKind.NAVIGATE, OpKind.TRANSPORT):
+        return frozenset((op.action.src, op.action.dst))
+    return frozenset((op.region,))
+
+
+def task_groups(words, spec: StepSpec, actions: Sequence) -> list[list[int]]:
+    """Indices (into ``actions``, the step's visible actions in execution order) grouped greedily: the next
+    action joins the current group while every interleaving of every group's crossings still reaches the
+    step's planned NBA state from its source state.  Steps between word families (universal planner) keep
+    one action per group."""
+    if not actions:
+        return []
+    if not isinstance(spec.src_q, int) or not isinstance(spec.dst_q, int):
+        return [[i] for i in range(len(actions))]
+    groups: list[list[int]] = [[0]]
+    for i in range(1, len(actions)):
+        trial = [g[:] for g in groups]
+        trial[-1].append(i)
+        if _fits(words, trial[-1], actions) and _reaches(words, spec, spec, [[actions[k] for k in g] for g in trial]):
+            groups = trial
+        else:
+            groups.append([i])
+    return groups
+
+
+def _fits(words, group, actions) -> bool:
+    return sum(len(words.crossings(actions[k])) for k in group) <= GROUP_BODIES
+
+
+def _reaches(words, first: StepSpec, last: StepSpec, groups) -> bool:
+    F = words.concurrent_reach(first.src_q, first.src, groups)
+    return all(S >> last.dst_q & 1 for S in F)
+
+
+@dataclass(frozen=True)
+class TaskOrder:
+    """The order the task needs: the group of every visible op (``group[(step, op index)]``, numbered along
+    the run) and the last step of every step's *block* (consecutive steps whose visible actions all AP_φ sees
+    interleave across their boundaries; the monitor checks the plan's NBA state at block ends)."""
+
+    group: dict
+    block_end: tuple[int, ...]
+
+
+def task_order(words, placement: Placement) -> TaskOrder:
+    """Groups within each step (:func:`task_groups`); then the last group of a block and the first group of
+    the next step merge, extending the block, while every interleaving of the block's groups reaches the
+    next step's planned NBA state from the block's source state, both steps have visible actions (no step
+    reads a label of its own) and belong to the same cycle (prefix or one suffix cycle: the lasso repeats
+    whole blocks), and the block does not end at an accepting NBA state (so that an accepting planned state
+    stays a checked state of the run)."""
+    accepting = set(words.nba.accepting)
+    steps = placement.steps
+    vis = [[k for k, op in enumerate(sp.ops)
+            if op.kind in (OpKind.NAVIGATE, OpKind.TRANSPORT) and words.crossings(op.action)] for sp in steps]
+    block_end = list(range(len(steps)))
+    # a block: (first step, groups as lists of (step, op index))
+    blocks: list[tuple[int, list[list[tuple[int, int]]]]] = []
+    for s, sp in enumerate(steps):
+        acts = [sp.ops[k].action for k in vis[s]]
+        own = [[(s, vis[s][i]) for i in g] for g in task_groups(words, sp.step, acts)]
+        if blocks and own and _joins(words, steps, blocks[-1], s, own, accepting):
+            first, groups = blocks[-1]
+            blocks[-1] = (first, groups[:-1] + [groups[-1] + own[0]] + own[1:])
+        else:
+            blocks.append((s, own))
+    group: dict = {}
+    n = 0
+    for first, groups in blocks:
+        last = max((st for g in groups for st, _ in g), default=first)
+        for t in range(first, last + 1):
+            block_end[t] = last
+        for g in groups:
+            for key in g:
+                group[key] = n
+            n += 1
+    return TaskOrder(group, tuple(block_end))
+
+
+def _joins(words, steps, block, s: int, own, accepting) -> bool:
+    first, groups = block
+    prev = steps[s - 1].step
+    if not groups or max(st for g in groups for st, _ in g) != s - 1:
+        return False
+    specs = [steps[t].step for t in range(first, s + 1)]
+    if any(not isinstance(x.src_q, int) or not isinstance(x.dst_q, int) for x in specs):
+        return False
+    if prev.dst_q in accepting or prev.cycle != steps[s].step.cycle:
+        return False
+    merged = groups[:-1] + [groups[-1] + own[0]] + own[1:]
+    if sum(len(words.crossings(steps[st].ops[k].action)) for st, k in merged[-len(own)]) > GROUP_BODIES:
+        return False
+    acts = [[steps[st].ops[k].action for st, k in g] for g in merged]
+    return _reaches(words, specs[0], specs[-1], acts)
+
+
+def dependency_graph(ts: TransitionSystem, words, placement: Placement,
+                     order: TaskOrder | None = None) -> tuple[Job, ...]:
+    """The jobs of ``placement`` with their predecessors (module docstring)."""
+    order = task_order(words, placement) if order is None else order
+    jobs: list[Job] = []
+    members: dict[int, list[int]] = {}
+    for s, sp in enumerate(placement.steps):
+        for k, op in enumerate(sp.ops):
+            uid = len(jobs)
+            b, r, g = op_bodies(ts, op), op_regions(op), order.group.get((s, k), -1)
+            preds = [j.uid for j in jobs if j.bodies & b or j.regions & r]
+            if g > 0:
+                preds.extend(members.get(g - 1, ()))
+            if g >= 0:
+                members.setdefault(g, []).append(uid)
+            jobs.append(Job(uid, s, op, b, r, g, tuple(sorted(set(preds)))))
+    return tuple(jobs)
+
+
+def critical_path(jobs: Sequence[Job], durations: Sequence[float]) -> float:
+    """Makespan of ``jobs`` run as early as their predecessors allow with the given durations (no waits for
+    corridors): a lower bound of the concurrent makespan."""
+    end = np.zeros(len(jobs))
+    for j in jobs:
+        end[j.uid] = max((end[p] for p in j.preds), default=0.0) + float(durations[j.uid])
+    return float(end.max()) if len(jobs) else 0.0
+
+
+def _component(geom, point: Point) -> Polygon | None:
+    parts = list(geom.geoms) if hasattr(geom, "geoms") else [geom]
+    return next((p for p in parts if isinstance(p, Polygon) and p.contains(point)), None)
+
+
+@dataclass(frozen=True)
+class Request:
+    """A navigation or transport that may start now: its job, its free space F (centre positions, with
+    every entity not in motion as a hole), start, goal, covering radius and the disks of its source and
+    destination regions, each with and without its approach ring (body extent)."""
+
+    uid: int
+    free: Polygon
+    start: np.ndarray
+    goal: np.ndarray
+    radius: float
+    regions: tuple[tuple[Polygon, Polygon], tuple[Polygon, Polygon]]
+
+
+def _route(rq: Request, room: Polygon) -> np.ndarray | None:
+    area = _component(room, Point(rq.start)) if not room.is_empty else None
+    if area is None or not area.contains(Point(rq.goal)):
+        return None
+    for step in ROUTE_STEPS:
+        try:
+            return grid_path(area, rq.start, rq.goal, step=step)
+        except ValueError:
+            continue
+    return None
+
+
+def _cells(routes: dict[int, np.ndarray], available: Polygon) -> dict[int, Polygon]:
+    """The Voronoi cells of the routes (points closer to one route than to every other) within ``available``."""
+    if len(routes) == 1:
+        return {uid: available for uid in routes}
+    pts, owner = [], []
+    for uid, path in routes.items():
+        line = LineString(path) if len(path) > 1 else Point(path[0])
+        n = max(2, int(line.length / ROUTE_SAMPLE) + 1)
+        for d in np.linspace(0.0, line.length, n):
+            p = line.interpolate(d)
+            pts.append((p.x, p.y))
+            owner.append(uid)
+    pts_arr = np.unique(np.round(np.array(pts), 6), axis=0, return_index=True)
+    keep = sorted(pts_arr[1])
+    pts, owner = [pts[i] for i in keep], [owner[i] for i in keep]
+    cells = shapely.voronoi_polygons(shapely.MultiPoint(pts), extend_to=available, ordered=True)
+    out: dict[int, list] = {uid: [] for uid in routes}
+    for cell, uid in zip(cells.geoms, owner):
+        out[uid].append(cell)
+    return {uid: shapely.union_all(c).intersection(available) for uid, c in out.items()}
+
+
+def assign_corridors(requests: Sequence[Request], floor: Polygon, busy: Polygon | None,
+                     margin: float) -> dict[int, Corridor]:
+    """Corridors for the motions of ``requests`` that can start together now (module docstring); ``busy``:
+    the bodies' corridors of the motions running (None: none).  One motion and nothing running: the whole
+    floor, unconfined.  Otherwise the floor not held by running motions is split into the Voronoi cells of
+    the requests' routes; a motion gets its cell shrunk by its covering radius, the margin and :data:`GAP`
+    (its centre positions) if that connects its start to its goal and holds its regions' approach disks.
+    Motions without one are left out and the cells drawn again for the others; they wait."""
+    alone = {requests[0].uid: Corridor(None, floor)} if busy is None else {}
+    if busy is None and len(requests) == 1:
+        return alone
+    available = floor if busy is None else floor.difference(busy)
+    members = list(requests)
+    while members:
+        routes = {}
+        for rq in members:
+            path = _route(rq, rq.free.intersection(available.buffer(-(rq.radius + margin + GAP))))
+            if path is not None:
+                routes[rq.uid] = path
+        members = [rq for rq in members if rq.uid in routes]
+        if not members:
+            return alone
+        if busy is None and len(members) == 1:
+            return {members[0].uid: Corridor(None, floor)}
+        cells = _cells(routes, available)
+        out, failed = {}, []
+        for rq in members:
+            got = _corridor_in(rq, cells[rq.uid], margin)
+            if got is None:
+                failed.append(rq.uid)
+            else:
+                out[rq.uid] = got
+        if not failed:
+            return out
+        # the motions later in the run give way: drop the last one and split the floor again
+        members = members[:-1] if len(members) > 1 else []
+    return alone
+
+
+def _corridor_in(rq: Request, cell: Polygon, margin: float) -> Corridor | None:
+    confine = _component(rq.free.intersection(cell.buffer(-(rq.radius + margin + GAP))), Point(rq.start))
+    if confine is None or not confine.contains(Point(rq.goal)):
+        return None
+    rings, used = [], []
+    for ring, region in rq.regions:
+        if cell.contains(ring):
+            rings.append(True)
+            used.append(ring)
+        elif cell.contains(region):
+            rings.append(False)
+            used.append(region)
+        else:
+            return None
+    body = shapely.union_all([confine.buffer(rq.radius + margin, quad_segs=DISK_QUAD_SEGS), *used])
+    return Corridor(confine, body, (rings[0], rings[1]))
