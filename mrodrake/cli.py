@@ -132,8 +132,15 @@ def _progress_callback(desc: str):
     return update
 
 
+class _Parser(argparse.ArgumentParser):
+    """An argument parser whose errors are one line naming the command and the option (exit status 2)."""
+
+    def error(self, message: str):
+        self.exit(2, f"error: {self.prog}: {message} (see {self.prog} --help)\n")
+
+
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+    parser = _Parser(
         prog="mrodrake",
         description="Plan and control multi-robot-object systems under LTL tasks (Verginis, Kantaros, Dimarogonas).",
     )

@@ -6,6 +6,7 @@ import re
 from pathlib import Path
 
 import pandas as pd
+import pytest
 
 from mrodrake import cli
 from mrodrake.control.adaptive import NavigationTask
@@ -22,6 +23,18 @@ def test_missing_plan_file_is_a_user_error(tmp_path, capsys):
     assert cli.main(["run", str(TINY), "--plan", str(tmp_path / "nope.json"), "--out", str(tmp_path)]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert err == [f"error: --plan: file '{tmp_path / 'nope.json'}' not found"]
+
+
+@pytest.mark.parametrize("args, option", [
+    (["run", str(TINY), "--execution", "parallel"], "--execution"),
+    (["ts", str(TINY), "--max-transitions", "-3"], "--max-transitions"),
+    (["run", str(TINY), "--suffix-cycles", "two"], "--suffix-cycles"),
+])
+def test_a_bad_option_value_is_one_line_naming_the_option(args, option, capsys):
+    with pytest.raises(SystemExit) as exc:
+        cli.main(args)
+    err = capsys.readouterr().err.strip().splitlines()
+    assert exc.value.code == 2 and len(err) == 1 and err[0].startswith("error: mrodrake ") and option in err[0], err
 
 
 def test_plan_that_does_not_verify_is_a_user_error(tmp_path, capsys):
