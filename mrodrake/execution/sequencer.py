@@ -414,6 +414,8 @@ class Sequencer:
     def _grant(self, ed: _Edit, X: np.ndarray) -> None:
         """Corridors (:func:`~mrodrake.execution.schedule.assign_corridors`) for every navigation or transport
         in execution that is ready to move and has not asked since a job last ended, together."""
+        if any(a.op.kind is OpKind.TRANSPORT and a.phase is Phase.START for a in ed.running):
+            return  # a team engaging now asks at the next tick: everyone asks then, together
         requests, failed = [], set()
         for a in ed.running:
             if a.motion is not None or a.uid in ed.grants or a.tried == ed.corridors:
