@@ -147,9 +147,10 @@ class Mission:
 
     Before anything is built, the whole executed run is placed (:func:`~mrodrake.planning.placement.place_run`;
     a geometry that cannot be realised raises a one-line :class:`~mrodrake.planning.placement.PlacementError`
-    naming the step and region).  The diagram (:mod:`mrodrake.systems.builders`): a plant per robot and object,
-    a navigation controller per robot, a team plant and transport controller per (object, team) of the plan's
-    transports, a state switch per entity, the :class:`~mrodrake.systems.supervisor.Supervisor` (the
+    naming the step and region).  The diagram (:mod:`mrodrake.systems.builders`): one
+    :class:`~mrodrake.systems.plants.MissionPlants` system with a plant per robot and object and a team plant
+    per (object, team) of the plan's transports, a navigation controller per robot, a transport controller per
+    team plant, a state switch per entity, the :class:`~mrodrake.systems.supervisor.Supervisor` (the
     sequencer's ports) and a :class:`MissionLogger`.
 
     Integration: Drake's error-controlled RK3 with ``accuracy`` 1e-3.  Drake weights every state component
@@ -181,15 +182,15 @@ class Mission:
 
         b = DiagramBuilder()
         gains = AdaptiveGains.from_scenario(scenario.control)
-        self.plants = AddEntityPlants(b, scenario)
+        self.plants = AddEntityPlants(b, scenario, self.sequencer)
         self.nav_ctrls = AddNavigationControllers(b, scenario, self.plants, gains)
-        self.teams = AddTeams(b, scenario, self.sequencer, gains)
+        self.teams = AddTeams(b, scenario, self.sequencer, self.plants, gains)
         self.switches = AddStateSwitches(b, scenario, self.plants, self.teams, self.nav_ctrls)
         self.supervisor = AddSupervisor(b, self.sequencer, self.plants, self.teams, self.nav_ctrls, self.switches,
                                         check_period)
         entities = scenario.robot_names + scenario.object_names
         ctrl_info = {f"nav_{r}": (r, ()) for r in scenario.robot_names}
-        ctrl_info.update({t.name + "_ctrl": (scenario.object_names[t.obj], tuple(t.plant.members)) for t in self.teams})
+        ctrl_info.update({t.name + "_ctrl": (scenario.object_names[t.obj], t.members) for t in self.teams})
         self.logger = b.AddSystem(MissionLogger(entities, ctrl_info, log_period))
         for k, e in enumerate(entities):
             b.Connect(self.switches.switches[e].get_output_port(), self.logger.state_ports[k])
@@ -207,10 +208,12 @@ class Mission:
                                              max_step_size=max_step, use_error_control=True), self.simulator)
         ctx = self.simulator.get_mutable_context()
         init = np.asarray(self.placement.initial, dtype=float).reshape(-1, 2)
-        for e, p in self.plants.all().items():
-            p.set_state(p.GetMyMutableContextFromRoot(ctx), init[entities.index(e)], (0.0, 0.0))
+        plants = self.plants.system
+        pctx = plants.GetMyMutableContextFromRoot(ctx)
+        for k, e in enumerate(entities):
+            plants.set_state(pctx, e, init[k], (0.0, 0.0))
         for t in self.teams:
-            t.plant.set_state(t.plant.GetMyMutableContextFromRoot(ctx), init[len(scenario.robots) + t.obj], (0.0, 0.0))
+            plants.set_state(pctx, t.name, init[len(scenario.robots) + t.obj], (0.0, 0.0))
         self.initial_positions = {e: tuple(init[k]) for k, e in enumerate(entities)}
         self.sim_seconds = 0.0
         self.wall_seconds = 0.0
