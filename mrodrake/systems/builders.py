@@ -4,8 +4,9 @@ handles (Drake idiom: RussTedrake/manipulation's ``AddIiwa`` & co.).
 * :func:`AddEntityPlants`: the plants of every robot, object and (object, team) of the plan's transports
   (true masses and frictions), one :class:`~mrodrake.systems.plants.MissionPlants` system with a
   Demultiplexer giving each plant's [x, ẋ] its own port;
-* :func:`AddNavigationControllers`: an adaptive navigation controller per robot, wired to its plant;
-* :func:`AddTeams`: a transport controller per team plant;
+* :func:`teams_of`: the team plants of the plan's transports;
+* :func:`AddControllers`: an adaptive navigation controller per robot and a transport controller per team
+  plant, one :class:`~mrodrake.systems.controllers.MissionControllers` system wired to the plants;
 * :func:`AddStateSwitches`: a PortSwitch per robot and object choosing its authoritative [x, ẋ] (its own
   plant, or the team plant it is coupled to), with the index of every input;
 * :func:`AddSupervisor`: the supervisor with every task, sync and select connection.
@@ -21,7 +22,7 @@ from pydrake.systems.primitives import Demultiplexer, PortSwitch
 from mrodrake.control.adaptive import AdaptiveGains
 from mrodrake.execution.sequencer import Sequencer
 from mrodrake.scenario import Scenario
-from mrodrake.systems.controllers import NavigationController, TransportController
+from mrodrake.systems.controllers import MissionControllers
 from mrodrake.systems.plants import MissionPlants
 from mrodrake.systems.supervisor import Supervisor
 
@@ -50,13 +51,14 @@ class EntityPlants:
 
 @dataclass(frozen=True)
 class Team:
-    """A team plant of object ``obj`` (index) grasped by robots ``team`` (indices), with its controller."""
+    """A team plant of object ``obj`` (index) grasped by robots ``team`` (indices, names ``members``), driven
+    by the transport controller named ``controller``."""
 
     name: str
     obj: int
     team: tuple[int, ...]
     members: tuple[str, ...]
-    controller: TransportController
+    controller: str
 
 
 @dataclass(frozen=True)
@@ -78,35 +80,30 @@ def AddEntityPlants(builder: DiagramBuilder, scenario: Scenario, sequencer: Sequ
     return EntityPlants(system, demux)
 
 
-def AddNavigationControllers(builder: DiagramBuilder, scenario: Scenario, plants: EntityPlants,
-                             gains: AdaptiveGains) -> dict[str, NavigationController]:
-    """A navigation controller ``nav_<robot>`` per robot driving its plant (its state input is connected by
-    :func:`AddStateSwitches`)."""
-    out = {}
+def teams_of(scenario: Scenario, sequencer: Sequencer) -> list[Team]:
+    """The team plants of ``sequencer``'s couplings, with the name of each one's transport controller."""
+    return [Team(sequencer.team_name(j, team), j, tuple(team), tuple(scenario.robots[i].name for i in team),
+                 sequencer.team_name(j, team) + "_ctrl") for j, team in sequencer.couplings]
+
+
+def AddControllers(builder: DiagramBuilder, scenario: Scenario, plants: EntityPlants, teams: list[Team],
+                   gains: AdaptiveGains) -> MissionControllers:
+    """A navigation controller ``nav_<robot>`` per robot and a transport controller per team plant, in one
+    :class:`~mrodrake.systems.controllers.MissionControllers` system driving their plants (the robots' state
+    inputs are connected by :func:`AddStateSwitches`)."""
+    specs = [(f"nav_{r}", ()) for r in scenario.robot_names] + [(t.controller, t.members) for t in teams]
+    ctrl = builder.AddSystem(MissionControllers(specs, gains))
     for r in scenario.robot_names:
-        c = builder.AddSystem(NavigationController(None, gains, name=f"nav_{r}"))
-        builder.Connect(c.u_port, plants.system.u_ports[r])
-        out[r] = c
-    return out
-
-
-def AddTeams(builder: DiagramBuilder, scenario: Scenario, sequencer: Sequencer, plants: EntityPlants,
-             gains: AdaptiveGains) -> list[Team]:
-    """A transport controller ``<name>_ctrl`` per coupling of ``sequencer``, driving its team plant."""
-    out = []
-    for j, team in sequencer.couplings:
-        members = tuple(scenario.robots[i].name for i in team)
-        name = sequencer.team_name(j, team)
-        ctrl = builder.AddSystem(TransportController(list(members), None, gains, name=name + "_ctrl"))
-        for u_out, u_in in zip(ctrl.member_u_ports, plants.system.team_u_ports[name]):
+        builder.Connect(ctrl.u_ports[f"nav_{r}"], plants.system.u_ports[r])
+    for t in teams:
+        for u_out, u_in in zip(ctrl.member_u_ports[t.controller], plants.system.team_u_ports[t.name]):
             builder.Connect(u_out, u_in)
-        builder.Connect(plants.state_port(name), ctrl.state_port)
-        out.append(Team(name, j, tuple(team), members, ctrl))
-    return out
+        builder.Connect(plants.state_port(t.name), ctrl.state_ports[t.controller])
+    return ctrl
 
 
 def AddStateSwitches(builder: DiagramBuilder, scenario: Scenario, plants: EntityPlants, teams: list[Team],
-                     navs: dict[str, NavigationController]) -> StateSwitches:
+                     controllers: MissionControllers) -> StateSwitches:
     """The switches, their inputs (own plant first, then every team plant the entity belongs to) and the
     robots' controller state inputs."""
     switches, route = {}, {}
@@ -124,13 +121,13 @@ def AddStateSwitches(builder: DiagramBuilder, scenario: Scenario, plants: Entity
             port = switches[r].DeclareInputPort(t.name)
             builder.Connect(plants.system.member_ports[t.name][k], port)
             route[(r, t.name)] = int(port.get_index())
-    for r, c in navs.items():
-        builder.Connect(switches[r].get_output_port(), c.state_port)
+    for r in scenario.robot_names:
+        builder.Connect(switches[r].get_output_port(), controllers.state_ports[f"nav_{r}"])
     return StateSwitches(switches, route)
 
 
-def AddSupervisor(builder: DiagramBuilder, sequencer: Sequencer, plants: EntityPlants, teams: list[Team],
-                  navs: dict[str, NavigationController], switches: StateSwitches, period: float) -> Supervisor:
+def AddSupervisor(builder: DiagramBuilder, sequencer: Sequencer, plants: EntityPlants,
+                  controllers: MissionControllers, switches: StateSwitches, period: float) -> Supervisor:
     """The supervisor reading every switch output and driving every task, sync and selector."""
     sup = builder.AddSystem(Supervisor(sequencer, switches.route_ports, period))
     for k, e in enumerate(sequencer.entities):
@@ -138,8 +135,6 @@ def AddSupervisor(builder: DiagramBuilder, sequencer: Sequencer, plants: EntityP
         builder.Connect(sup.select_ports[e], switches.switches[e].get_port_selector_input_port())
     for p in plants.names:
         builder.Connect(sup.sync_ports[p], plants.system.sync_ports[p])
-    for t in teams:
-        builder.Connect(sup.task_ports[t.name + "_ctrl"], t.controller.task_port)
-    for r, c in navs.items():
-        builder.Connect(sup.task_ports[f"nav_{r}"], c.task_port)
+    for c in sequencer.controllers:
+        builder.Connect(sup.task_ports[c], controllers.task_ports[c])
     return sup

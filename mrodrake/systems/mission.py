@@ -31,11 +31,11 @@ from mrodrake.planning.plan import Plan, PlanVerificationError, task_nba, task_w
 from mrodrake.planning.steps import expand_steps
 from mrodrake.scenario import Scenario
 from mrodrake.systems.builders import (
+    AddControllers,
     AddEntityPlants,
-    AddNavigationControllers,
     AddStateSwitches,
     AddSupervisor,
-    AddTeams,
+    teams_of,
 )
 from mrodrake.systems.transition import TransitionResult
 from mrodrake.ts import TransitionSystem
@@ -149,8 +149,9 @@ class Mission:
     a geometry that cannot be realised raises a one-line :class:`~mrodrake.planning.placement.PlacementError`
     naming the step and region).  The diagram (:mod:`mrodrake.systems.builders`): one
     :class:`~mrodrake.systems.plants.MissionPlants` system with a plant per robot and object and a team plant
-    per (object, team) of the plan's transports, a navigation controller per robot, a transport controller per
-    team plant, a state switch per entity, the :class:`~mrodrake.systems.supervisor.Supervisor` (the
+    per (object, team) of the plan's transports, one :class:`~mrodrake.systems.controllers.MissionControllers`
+    system with a navigation controller per robot and a transport controller per team plant, a state switch
+    per entity, the :class:`~mrodrake.systems.supervisor.Supervisor` (the
     sequencer's ports) and a :class:`MissionLogger`.
 
     Integration: Drake's error-controlled RK3 with ``accuracy`` 1e-3.  Drake weights every state component
@@ -183,22 +184,20 @@ class Mission:
         b = DiagramBuilder()
         gains = AdaptiveGains.from_scenario(scenario.control)
         self.plants = AddEntityPlants(b, scenario, self.sequencer)
-        self.nav_ctrls = AddNavigationControllers(b, scenario, self.plants, gains)
-        self.teams = AddTeams(b, scenario, self.sequencer, self.plants, gains)
-        self.switches = AddStateSwitches(b, scenario, self.plants, self.teams, self.nav_ctrls)
-        self.supervisor = AddSupervisor(b, self.sequencer, self.plants, self.teams, self.nav_ctrls, self.switches,
+        self.teams = teams_of(scenario, self.sequencer)
+        self.controllers = AddControllers(b, scenario, self.plants, self.teams, gains)
+        self.switches = AddStateSwitches(b, scenario, self.plants, self.teams, self.controllers)
+        self.supervisor = AddSupervisor(b, self.sequencer, self.plants, self.controllers, self.switches,
                                         check_period)
         entities = scenario.robot_names + scenario.object_names
         ctrl_info = {f"nav_{r}": (r, ()) for r in scenario.robot_names}
-        ctrl_info.update({t.name + "_ctrl": (scenario.object_names[t.obj], t.members) for t in self.teams})
+        ctrl_info.update({t.controller: (scenario.object_names[t.obj], t.members) for t in self.teams})
         self.logger = b.AddSystem(MissionLogger(entities, ctrl_info, log_period))
         for k, e in enumerate(entities):
             b.Connect(self.switches.switches[e].get_output_port(), self.logger.state_ports[k])
-        controllers = {f"nav_{r}": c for r, c in self.nav_ctrls.items()}
-        controllers.update({t.name + "_ctrl": t.controller for t in self.teams})
-        for c, ctrl in controllers.items():
-            b.Connect(ctrl.u_port, self.logger.u_ports[c])
-            b.Connect(ctrl.estimates_port, self.logger.est_ports[c])
+        for c in self.controllers.names:
+            b.Connect(self.controllers.u_ports[c], self.logger.u_ports[c])
+            b.Connect(self.controllers.estimates_ports[c], self.logger.est_ports[c])
             b.Connect(self.supervisor.task_ports[c], self.logger.task_ports[c])
         self.diagram = b.Build()
         self.diagram.set_name("mission")
@@ -220,7 +219,6 @@ class Mission:
         self._stop = False
         self._fault = ""
         self._progress, self._last_done = None, -1
-        self._controllers = controllers
         self.simulator.set_monitor(self._Monitor)
 
     # ------------------------------------------------------------------ running
@@ -281,10 +279,10 @@ class Mission:
         if self._stop:
             return EventStatus.ReachedTermination(self.diagram, "stopped by the user")
         st = self.supervisor.exec_state(self.supervisor.GetMyContextFromRoot(root_context))
+        ctrl_ctx = self.controllers.GetMyContextFromRoot(root_context)
         for name, cmd in st.tasks.items():
             if cmd is not None:
-                ctrl = self._controllers[name]
-                why = ctrl.fault(ctrl.GetMyContextFromRoot(root_context))
+                why = self.controllers.fault(ctrl_ctx, name)
                 if why:
                     self._fault = f"controller fault of {name}: {why}"
                     return EventStatus.ReachedTermination(self.diagram, self._fault)
