@@ -275,6 +275,15 @@ class MissionControllers(LeafSystem):
             return ""
         return self.law(context, controller).fault
 
+    def first_fault(self, context) -> tuple[str, str] | None:
+        """(controller, why) of the first active controller, in :attr:`names` order, whose law is undefined at
+        the current state; None if there is none."""
+        for q in self._tasks.Eval(context)[1]:
+            why = self._laws[q].Eval(context).fault
+            if why:
+                return self.names[q], why
+        return None
+
     def DoCalcTimeDerivatives(self, context, derivatives):
         _, active, _ = self._tasks.Eval(context)
         out = np.zeros(2 * len(self.names))

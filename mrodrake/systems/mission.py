@@ -278,15 +278,12 @@ class Mission:
         on its NaN derivatives), ends ``AdvanceTo``; progress is reported per completed plan step."""
         if self._stop:
             return EventStatus.ReachedTermination(self.diagram, "stopped by the user")
-        st = self.supervisor.exec_state(self.supervisor.GetMyContextFromRoot(root_context))
-        ctrl_ctx = self.controllers.GetMyContextFromRoot(root_context)
-        for name, cmd in st.tasks.items():
-            if cmd is not None:
-                why = self.controllers.fault(ctrl_ctx, name)
-                if why:
-                    self._fault = f"controller fault of {name}: {why}"
-                    return EventStatus.ReachedTermination(self.diagram, self._fault)
+        fault = self.controllers.first_fault(self.controllers.GetMyContextFromRoot(root_context))
+        if fault is not None:
+            self._fault = f"controller fault of {fault[0]}: {fault[1]}"
+            return EventStatus.ReachedTermination(self.diagram, self._fault)
         if self._progress is not None:
+            st = self.supervisor.exec_state(self.supervisor.GetMyContextFromRoot(root_context))
             done = self.sequencer.steps_done(st)
             if done != self._last_done:
                 self._last_done = done

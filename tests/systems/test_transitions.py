@@ -23,6 +23,7 @@ from shapely.geometry import Point, box
 
 from mrodrake.control.adaptive import AdaptiveGains, NavigationTask
 from mrodrake.control.freespace import Disk
+from mrodrake.control.local import local_task
 from mrodrake.control.pointworld import PointWorldMap
 from mrodrake.errors import UserError
 from mrodrake.execution.commands import TaskCommand
@@ -261,7 +262,14 @@ def test_mission_controllers_compute_the_single_controllers(room_task):
         np.testing.assert_array_equal(bank.member_u_ports["ab_ctrl"][k].Eval(ctx),
                                       team.member_u_ports[k].Eval(tc))
     np.testing.assert_array_equal(bank.estimates_ports["ab_ctrl"].Eval(ctx), [1.5, 2.5])
-    assert bank.fault(ctx, "nav_b") == "" and bank.fault(ctx, "nav_a") == nav.fault(nc)
+    assert bank.fault(ctx, "nav_b") == "" and bank.fault(ctx, "nav_a") == nav.fault(nc) == ""
+    assert bank.first_fault(ctx) is None
+    past_pole = local_task([5.0, 0.0], [[2.5, 1.5]], [1.0], [0.0, 0.0], 8.0, gains, k1=0.25, k2=5.0, cf=2,
+                           start=[0.0, 0.0])
+    bank.task_ports["ab_ctrl"].FixValue(ctx, AbstractValue.Make(TaskCommand(past_pole, 0)))
+    bank.state_ports["ab_ctrl"].FixValue(ctx, [2.5, 1.0, 0.3, 0.0])  # inside the other entity's disk
+    name, why = bank.first_fault(ctx)
+    assert name == "ab_ctrl" and why == bank.fault(ctx, "ab_ctrl") != ""
     for c in bank.names:
         for o in (bank.estimates_ports[c].get_index(),):
             assert not bank.HasDirectFeedthrough(int(bank.state_ports[c].get_index()), int(o))
