@@ -1,13 +1,37 @@
 """``mrodrake bench run [--scenario FILE]``: wall time, simulated time and real-time factor of a whole mission
-(default case I, prefix + one suffix cycle; target ≤ 5 min wall on 2 cores) and per-primitive averages."""
+(default case I, prefix + one suffix cycle; target ≤ 5 min wall on 2 cores), its integration steps, derivative
+evaluations and point-world map builds (count, median / max, share of the wall time), and per-primitive
+averages."""
 
 from __future__ import annotations
 
+import contextlib
+import statistics
 import sys
 import time
 from pathlib import Path
 
 SCENARIO = Path(__file__).resolve().parents[2] / "scenarios" / "case_study_1.yaml"
+
+
+@contextlib.contextmanager
+def _recording_map_builds():
+    """Collects the wall time of every point-world map built meanwhile (a list, filled in place)."""
+    from mrodrake.control.pointworld import PointWorldMap
+
+    seconds: list[float] = []
+    build = PointWorldMap.__dict__["build"]
+
+    def recorded(cls, *args, **kwargs):
+        pw = build.__func__(cls, *args, **kwargs)
+        seconds.append(pw.build_seconds)
+        return pw
+
+    PointWorldMap.build = classmethod(recorded)
+    try:
+        yield seconds
+    finally:
+        PointWorldMap.build = build
 
 
 def run_mission_benchmark(stream=None, scenario_path=None, plan=None, suffix_cycles: int = 1,
@@ -27,8 +51,11 @@ def run_mission_benchmark(stream=None, scenario_path=None, plan=None, suffix_cyc
     t1 = time.perf_counter()
     mission = Mission(scenario, plan, suffix_cycles=suffix_cycles, seed=seed)
     t_build = time.perf_counter() - t1
-    log = mission.run()
+    with _recording_map_builds() as builds:
+        log = mission.run()
     steps = mission.simulator.get_num_steps_taken()
+    evaluations = mission.simulator.get_integrator().get_num_derivative_evaluations()
+    map_wall = sum(builds)
     prim = log.primitive_events.copy()
     prim["kind"] = prim["action"].str.split().str[0]
     prim["sim_s"] = prim["t_end"] - prim["t_start"]
@@ -36,6 +63,10 @@ def run_mission_benchmark(stream=None, scenario_path=None, plan=None, suffix_cyc
     rows = [("planning wall [s]", f"{t_plan:.2f}"), ("diagram build wall [s]", f"{t_build:.2f}"),
             ("mission wall [s]", f"{log.wall_seconds:.1f}"), ("simulated time [s]", f"{log.sim_seconds:.1f}"),
             ("real-time factor (sim/wall)", f"{rtf:.1f}"), ("integration steps", f"{steps}"),
+            ("derivative evaluations", f"{evaluations}"),
+            ("map builds: count, median / max [s]",
+             f"{len(builds)}, {statistics.median(builds):.2f} / {max(builds):.2f}" if builds else "0"),
+            ("map builds: share of mission wall", f"{map_wall / log.wall_seconds:.0%}" if log.wall_seconds else "-"),
             ("plan steps", f"{log.steps_done}/{log.steps_total}"),
             ("primitives ok", f"{int(prim['ok'].sum())}/{len(prim)}"), ("outcome", "ok" if log.ok else log.message)]
     if scenario.name == "case_study_1":
@@ -52,4 +83,5 @@ def run_mission_benchmark(stream=None, scenario_path=None, plan=None, suffix_cyc
         print(f"  {kind:<10} {int(r['count']):>5} {r['mean']:>9.1f} {r['max']:>9.1f} {r['mean'] * wall_share:>9.2f}",
               file=stream)
     return {"wall": log.wall_seconds, "sim": log.sim_seconds, "rtf": rtf, "steps": steps, "ok": log.ok,
+            "derivative_evaluations": evaluations, "map_builds": list(builds),
             "primitives": len(prim), "per_kind": per.to_dict()}

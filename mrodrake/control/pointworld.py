@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import itertools
 import math
+import threading
 import time
 from dataclasses import dataclass
 
@@ -383,6 +384,24 @@ def _chain(a_xy, b_xy, ring_of_panel, with_rings=False):
     return (*out, np.concatenate(rings)[:-1]) if with_rings else out
 
 
+_WORK = threading.local()
+
+
+def _workspace(size: int) -> tuple[np.ndarray, np.ndarray]:
+    """Uninitialised (size, size) float64 and float32 arrays, kept per thread from one solve to the next.
+
+    A fresh array of this size comes from the operating system as untouched pages, and the first write to
+    each page faults: about a tenth of a solve of 4,000 panels.  The buffers only grow (the largest solve of
+    the thread so far); the arrays are views, valid until the thread's next call.
+    """
+    need = size * size
+    buf = getattr(_WORK, "buffers", None)
+    if buf is None or buf[0].size < need:
+        buf = (np.empty(need), np.empty(need, dtype=np.float32))
+        _WORK.buffers = buf
+    return buf[0][:need].reshape(size, size), buf[1][:need].reshape(size, size)
+
+
 def _solve_refined(M: np.ndarray, rhs: np.ndarray, m32: np.ndarray | None = None) -> np.ndarray:
     """Solve M X = rhs to float64 accuracy: float32 LU plus iterative refinement (float64 LU if that stalls).
 
@@ -575,10 +594,9 @@ class PointWorldMap:
         L = L_link[real]
         mid = 0.5 * (a_xy + b_xy)
         size = n + n_holes + 1
-        M = np.empty((size, size))
+        M, M32 = _workspace(size)  # M32: M's float32 copy for the LU, filled while cache-hot
         M[:, n:] = 0.0
         M[n:, :n] = 0.0
-        M32 = np.empty((size, size), dtype=np.float32)  # its float32 copy for the LU, filled while cache-hot
         # real links are runs between the dummies: link l of run k is column l - k
         dummies = np.flatnonzero(~real)
         runs = list(zip(np.concatenate([[0], dummies + 1]), np.concatenate([dummies, [len(real)]])))

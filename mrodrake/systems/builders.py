@@ -1,9 +1,12 @@
 """``AddX(builder, ...)`` helpers that put the systems of a mission into a DiagramBuilder and return typed
 handles (Drake idiom: RussTedrake/manipulation's ``AddIiwa`` & co.).
 
-* :func:`AddEntityPlants`: a synced plant per robot and per object (true masses and frictions);
-* :func:`AddNavigationControllers`: an adaptive navigation controller per robot, wired to its plant;
-* :func:`AddTeams`: a team plant and a transport controller per (object, team) of the plan's transports;
+* :func:`AddEntityPlants`: the plants of every robot, object and (object, team) of the plan's transports
+  (true masses and frictions), one :class:`~mrodrake.systems.plants.MissionPlants` system with a
+  Demultiplexer giving each plant's [x, ẋ] its own port;
+* :func:`teams_of`: the team plants of the plan's transports;
+* :func:`AddControllers`: an adaptive navigation controller per robot and a transport controller per team
+  plant, one :class:`~mrodrake.systems.controllers.MissionControllers` system wired to the plants;
 * :func:`AddStateSwitches`: a PortSwitch per robot and object choosing its authoritative [x, ẋ] (its own
   plant, or the team plant it is coupled to), with the index of every input;
 * :func:`AddSupervisor`: the supervisor with every task, sync and select connection.
@@ -14,36 +17,48 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from pydrake.systems.framework import DiagramBuilder
-from pydrake.systems.primitives import PortSwitch
+from pydrake.systems.primitives import Demultiplexer, PortSwitch
 
 from mrodrake.control.adaptive import AdaptiveGains
 from mrodrake.execution.sequencer import Sequencer
 from mrodrake.scenario import Scenario
-from mrodrake.systems.controllers import NavigationController, TransportController
-from mrodrake.systems.plants import SyncedCoupledPlant, SyncedObjectPlant, SyncedRobotPlant
+from mrodrake.systems.controllers import MissionControllers
+from mrodrake.systems.plants import MissionPlants
 from mrodrake.systems.supervisor import Supervisor
 
 
 @dataclass(frozen=True)
 class EntityPlants:
-    """The synced plant of every robot and object, by name."""
+    """The plants of a mission: ``system`` (every robot, object and team plant) and ``demux`` (one [x, ẋ]
+    output per plant, in ``system.names`` order)."""
 
-    robots: dict[str, SyncedRobotPlant]
-    objects: dict[str, SyncedObjectPlant]
+    system: MissionPlants
+    demux: Demultiplexer
 
-    def all(self) -> dict:
-        return {**self.robots, **self.objects}
+    @property
+    def names(self) -> list[str]:
+        return list(self.system.names)
+
+    @property
+    def entities(self) -> list[str]:
+        """The robots, then the objects."""
+        return self.system.robot_names + self.system.object_names
+
+    def state_port(self, plant: str):
+        """The output port carrying [x, ẋ] of ``plant`` (a robot, object or team name)."""
+        return self.demux.get_output_port(self.system.index(plant))
 
 
 @dataclass(frozen=True)
 class Team:
-    """A team plant of object ``obj`` (index) grasped by robots ``team`` (indices), with its controller."""
+    """A team plant of object ``obj`` (index) grasped by robots ``team`` (indices, names ``members``), driven
+    by the transport controller named ``controller``."""
 
     name: str
     obj: int
     team: tuple[int, ...]
-    plant: SyncedCoupledPlant
-    controller: TransportController
+    members: tuple[str, ...]
+    controller: str
 
 
 @dataclass(frozen=True)
@@ -55,78 +70,71 @@ class StateSwitches:
     route_ports: dict[tuple[str, str], int]
 
 
-def AddEntityPlants(builder: DiagramBuilder, scenario: Scenario) -> EntityPlants:
-    robots = {r.name: builder.AddSystem(SyncedRobotPlant(r.mass, r.friction, name=r.name)) for r in scenario.robots}
-    objects = {o.name: builder.AddSystem(SyncedObjectPlant(o.mass, o.friction, name=o.name))
-               for o in scenario.objects}
-    return EntityPlants(robots, objects)
+def AddEntityPlants(builder: DiagramBuilder, scenario: Scenario, sequencer: Sequencer) -> EntityPlants:
+    """The plants of every robot and object and a team plant per coupling of ``sequencer``."""
+    teams = [(sequencer.team_name(j, team), j, team) for j, team in sequencer.couplings]
+    system = builder.AddSystem(MissionPlants(scenario, teams))
+    demux = builder.AddSystem(Demultiplexer(4 * len(system.names), 4))
+    demux.set_name("plant_states")
+    builder.Connect(system.state_port, demux.get_input_port(0))
+    return EntityPlants(system, demux)
 
 
-def AddNavigationControllers(builder: DiagramBuilder, scenario: Scenario, plants: EntityPlants,
-                             gains: AdaptiveGains) -> dict[str, NavigationController]:
-    """A navigation controller ``nav_<robot>`` per robot driving its plant (its state input is connected by
-    :func:`AddStateSwitches`)."""
-    out = {}
+def teams_of(scenario: Scenario, sequencer: Sequencer) -> list[Team]:
+    """The team plants of ``sequencer``'s couplings, with the name of each one's transport controller."""
+    return [Team(sequencer.team_name(j, team), j, tuple(team), tuple(scenario.robots[i].name for i in team),
+                 sequencer.team_name(j, team) + "_ctrl") for j, team in sequencer.couplings]
+
+
+def AddControllers(builder: DiagramBuilder, scenario: Scenario, plants: EntityPlants, teams: list[Team],
+                   gains: AdaptiveGains) -> MissionControllers:
+    """A navigation controller ``nav_<robot>`` per robot and a transport controller per team plant, in one
+    :class:`~mrodrake.systems.controllers.MissionControllers` system driving their plants (the robots' state
+    inputs are connected by :func:`AddStateSwitches`)."""
+    specs = [(f"nav_{r}", ()) for r in scenario.robot_names] + [(t.controller, t.members) for t in teams]
+    ctrl = builder.AddSystem(MissionControllers(specs, gains))
     for r in scenario.robot_names:
-        c = builder.AddSystem(NavigationController(None, gains, name=f"nav_{r}"))
-        builder.Connect(c.u_port, plants.robots[r].u_port)
-        out[r] = c
-    return out
-
-
-def AddTeams(builder: DiagramBuilder, scenario: Scenario, sequencer: Sequencer, gains: AdaptiveGains) -> list[Team]:
-    """A team plant and a transport controller ``<name>_ctrl`` per coupling of ``sequencer``."""
-    out = []
-    for j, team in sequencer.couplings:
-        o, rs = scenario.objects[j], [scenario.robots[i] for i in team]
-        name = sequencer.team_name(j, team)
-        plant = builder.AddSystem(SyncedCoupledPlant(o.mass, o.friction, [r.name for r in rs], [r.mass for r in rs],
-                                                     [r.friction for r in rs], name=name))
-        ctrl = builder.AddSystem(TransportController([r.name for r in rs], None, gains, name=name + "_ctrl"))
-        for u_out, u_in in zip(ctrl.member_u_ports, plant.u_ports):
+        builder.Connect(ctrl.u_ports[f"nav_{r}"], plants.system.u_ports[r])
+    for t in teams:
+        for u_out, u_in in zip(ctrl.member_u_ports[t.controller], plants.system.team_u_ports[t.name]):
             builder.Connect(u_out, u_in)
-        builder.Connect(plant.state_port, ctrl.state_port)
-        out.append(Team(name, j, team, plant, ctrl))
-    return out
+        builder.Connect(plants.state_port(t.name), ctrl.state_ports[t.controller])
+    return ctrl
 
 
 def AddStateSwitches(builder: DiagramBuilder, scenario: Scenario, plants: EntityPlants, teams: list[Team],
-                     navs: dict[str, NavigationController]) -> StateSwitches:
+                     controllers: MissionControllers) -> StateSwitches:
     """The switches, their inputs (own plant first, then every team plant the entity belongs to) and the
     robots' controller state inputs."""
     switches, route = {}, {}
-    for e, plant in plants.all().items():
+    for e in plants.entities:
         sw = builder.AddSystem(PortSwitch(4))
         sw.set_name(f"switch_{e}")
-        builder.Connect(plant.state_port, sw.DeclareInputPort(f"{e}_own"))
+        builder.Connect(plants.state_port(e), sw.DeclareInputPort(f"{e}_own"))
         switches[e] = sw
     for t in teams:
         obj = scenario.object_names[t.obj]
         port = switches[obj].DeclareInputPort(t.name)
-        builder.Connect(t.plant.state_port, port)
+        builder.Connect(plants.state_port(t.name), port)
         route[(obj, t.name)] = int(port.get_index())
-        for k, i in enumerate(t.team):
-            r = scenario.robot_names[i]
+        for k, r in enumerate(t.members):
             port = switches[r].DeclareInputPort(t.name)
-            builder.Connect(t.plant.member_ports[k], port)
+            builder.Connect(plants.system.member_ports[t.name][k], port)
             route[(r, t.name)] = int(port.get_index())
-    for r, c in navs.items():
-        builder.Connect(switches[r].get_output_port(), c.state_port)
+    for r in scenario.robot_names:
+        builder.Connect(switches[r].get_output_port(), controllers.state_ports[f"nav_{r}"])
     return StateSwitches(switches, route)
 
 
-def AddSupervisor(builder: DiagramBuilder, sequencer: Sequencer, plants: EntityPlants, teams: list[Team],
-                  navs: dict[str, NavigationController], switches: StateSwitches, period: float) -> Supervisor:
+def AddSupervisor(builder: DiagramBuilder, sequencer: Sequencer, plants: EntityPlants,
+                  controllers: MissionControllers, switches: StateSwitches, period: float) -> Supervisor:
     """The supervisor reading every switch output and driving every task, sync and selector."""
     sup = builder.AddSystem(Supervisor(sequencer, switches.route_ports, period))
     for k, e in enumerate(sequencer.entities):
         builder.Connect(switches.switches[e].get_output_port(), sup.state_ports[k])
         builder.Connect(sup.select_ports[e], switches.switches[e].get_port_selector_input_port())
-    for e, p in plants.all().items():
-        builder.Connect(sup.sync_ports[e], p.sync_port)
-    for t in teams:
-        builder.Connect(sup.sync_ports[t.name], t.plant.sync_port)
-        builder.Connect(sup.task_ports[t.name + "_ctrl"], t.controller.task_port)
-    for r, c in navs.items():
-        builder.Connect(sup.task_ports[f"nav_{r}"], c.task_port)
+    for p in plants.names:
+        builder.Connect(sup.sync_ports[p], plants.system.sync_ports[p])
+    for c in sequencer.controllers:
+        builder.Connect(sup.task_ports[c], controllers.task_ports[c])
     return sup

@@ -157,3 +157,155 @@ class TransportController(_AdaptiveController):
             output.SetFromVector(cf * self._law.Eval(context).u)
 
         return CalcMemberU
+
+
+class MissionControllers(LeafSystem):
+    """Every adaptive controller of a mission in one LeafSystem: for each ``(name, members)`` of
+    ``controllers`` the navigation law of one robot (``members`` empty) or the transport law of a team
+    (``members`` its robots), as :class:`NavigationController` and :class:`TransportController` compute them.
+
+    Continuous state: [m̂, α̂] of every controller in :attr:`names` order.  Per controller ``c``: inputs
+    ``state_<c>`` ([x, ẋ] of its entity) and ``task_<c>`` (a :class:`TaskCommand` or None: idle; must be
+    connected); outputs ``u_<c>`` (2), ``u_<c>_<member>`` (2, u_ℓ = cf_ℓ u) per team member and
+    ``estimates_<c>``.  An idle controller has zero dynamics and its law is not evaluated, so a derivative
+    evaluation costs one call for all controllers and computes only the active ones; a new episode resets a
+    controller's estimates to its task's m̂(0), α̂(0) at the start of the next step (one per-step unrestricted
+    update for all controllers, which leaves the context untouched when no episode changed).
+    """
+
+    def __init__(self, controllers: Sequence[tuple[str, Sequence[str]]], gains: AdaptiveGains,
+                 name: str = "controllers"):
+        super().__init__()
+        self.set_name(name)
+        self.names = [str(c) for c, _ in controllers]
+        if len(set(self.names)) != len(self.names):
+            raise ValueError(f"duplicate controller names: {self.names}")
+        self.members = {str(c): list(m) for c, m in controllers}
+        for c, m in self.members.items():
+            if len(set(m)) != len(m):
+                raise ValueError(f"members of {c} must be distinct, got {m}")
+        self.bodies = [1 + len(self.members[c]) for c in self.names]
+        init = [v for b in self.bodies for v in gains.initial_estimates(b)]
+        self.DeclareContinuousState(BasicVector(init))
+        self.state_ports = {c: self.DeclareVectorInputPort(f"state_{c}", 4) for c in self.names}
+        self.task_ports = {c: self.DeclareAbstractInputPort(f"task_{c}", AbstractValue.Make(None))
+                           for c in self.names}
+        self._task_list = [self.task_ports[c] for c in self.names]
+        self._state_list = [self.state_ports[c] for c in self.names]
+        self._episode_index = self.DeclareDiscreteState(np.full(len(self.names), float(_IDLE)))
+        self._tasks = self.DeclareCacheEntry(
+            "task commands", ValueProducer(allocate=lambda: AbstractValue.Make(None), calc=self._CalcTasks),
+            prerequisites_of_calc={p.ticket() for p in self._task_list})
+        self._laws = [
+            self.DeclareCacheEntry(f"adaptive law of {c}",
+                                   ValueProducer(allocate=lambda: AbstractValue.Make(_ZERO), calc=self._law_calc(q)),
+                                   prerequisites_of_calc={self._state_list[q].ticket(), self._task_list[q].ticket(),
+                                                          self.xc_ticket()})
+            for q, c in enumerate(self.names)]
+        self.u_ports, self.member_u_ports, self.estimates_ports = {}, {}, {}
+        for q, c in enumerate(self.names):
+            pre = {self._laws[q].ticket(), self._task_list[q].ticket()}
+            self.u_ports[c] = self.DeclareVectorOutputPort(f"u_{c}", 2, self._u_calc(q), prerequisites_of_calc=pre)
+            self.member_u_ports[c] = [
+                self.DeclareVectorOutputPort(f"u_{c}_{n}", 2, self._member_calc(q, k), prerequisites_of_calc=pre)
+                for k, n in enumerate(self.members[c])]
+            self.estimates_ports[c] = self.DeclareVectorOutputPort(
+                f"estimates_{c}", 2, self._estimates_calc(q), prerequisites_of_calc={self.xc_ticket()})
+        self.DeclarePerStepUnrestrictedUpdateEvent(self._ResetOnNewTask)
+
+    # ------------------------------------------------------------------ tasks
+    def _CalcTasks(self, context, value):
+        cmds = tuple(p.Eval(context) for p in self._task_list)
+        active = tuple(q for q, cmd in enumerate(cmds) if cmd is not None)
+        episodes = np.array([_IDLE if cmd is None else int(cmd.episode) for cmd in cmds], dtype=float)
+        value.set_value((cmds, active, episodes))
+
+    def command(self, context, controller: str) -> TaskCommand | None:
+        """The command in force for ``controller`` (None: idle)."""
+        return self._tasks.Eval(context)[0][self.names.index(controller)]
+
+    def active_task(self, context, controller: str) -> NavigationTask | None:
+        cmd = self.command(context, controller)
+        return None if cmd is None else cmd.task
+
+    def _ResetOnNewTask(self, context, state):
+        cmds, _, episodes = self._tasks.Eval(context)
+        changed = np.flatnonzero(episodes != context.get_discrete_state(int(self._episode_index)).value())
+        if len(changed) == 0:
+            return EventStatus.DidNothing()  # leaves the context (and its caches) untouched
+        est = context.get_continuous_state_vector().CopyToVector()
+        for q in changed:
+            if cmds[q] is not None:
+                est[2 * q : 2 * q + 2] = cmds[q].task.gains.initial_estimates(self.bodies[q])
+        state.get_mutable_discrete_state(int(self._episode_index)).SetFromVector(episodes)
+        state.get_mutable_continuous_state().SetFromVector(est)
+        return EventStatus.Succeeded()
+
+    def estimates(self, context, controller: str) -> np.ndarray:
+        """[m̂, α̂] of ``controller`` in this system's (sub)context."""
+        q = self.names.index(controller)
+        return context.get_continuous_state_vector().CopyToVector()[2 * q : 2 * q + 2]
+
+    def set_estimates(self, context, controller: str, m_hat: float, alpha_hat: float) -> None:
+        """Set [m̂, α̂] of ``controller`` in this system's (sub)context."""
+        q = self.names.index(controller)
+        est = context.get_continuous_state_vector().CopyToVector()
+        est[2 * q : 2 * q + 2] = float(m_hat), float(alpha_hat)
+        context.SetContinuousState(est)
+
+    # ------------------------------------------------------------------ evaluation
+    def _law_calc(self, q: int):
+        def calc(context, value):
+            cmd = self._task_list[q].Eval(context)
+            if cmd is None:
+                value.set_value(_ZERO)
+                return
+            s = self._state_list[q].Eval(context)
+            est = context.get_continuous_state_vector().value()[2 * q : 2 * q + 2]
+            value.set_value(cmd.task.evaluate(s[:2], s[2:], est[0], est[1]))
+        return calc
+
+    def law(self, context, controller: str) -> ControlEval:
+        """The cached evaluation of ``controller``'s law in ``context``."""
+        return self._laws[self.names.index(controller)].Eval(context)
+
+    def fault(self, context, controller: str) -> str:
+        """Why ``controller``'s law is undefined at the current state (empty while it is defined or idle)."""
+        if self.command(context, controller) is None:
+            return ""
+        return self.law(context, controller).fault
+
+    def first_fault(self, context) -> tuple[str, str] | None:
+        """(controller, why) of the first active controller, in :attr:`names` order, whose law is undefined at
+        the current state; None if there is none."""
+        for q in self._tasks.Eval(context)[1]:
+            why = self._laws[q].Eval(context).fault
+            if why:
+                return self.names[q], why
+        return None
+
+    def DoCalcTimeDerivatives(self, context, derivatives):
+        _, active, _ = self._tasks.Eval(context)
+        out = np.zeros(2 * len(self.names))
+        for q in active:
+            ev = self._laws[q].Eval(context)
+            out[2 * q] = ev.m_hat_dot
+            out[2 * q + 1] = ev.alpha_hat_dot
+        derivatives.get_mutable_vector().SetFromVector(out)
+
+    def _u_calc(self, q: int):
+        def calc(context, output):
+            output.SetFromVector(self._laws[q].Eval(context).u)
+        return calc
+
+    def _member_calc(self, q: int, k: int):
+        def calc(context, output):
+            cmd = self._task_list[q].Eval(context)
+            cf = cmd.task.cf[k] if cmd is not None else 0.0
+            output.SetFromVector(cf * self._laws[q].Eval(context).u)
+        return calc
+
+    def _estimates_calc(self, q: int):
+        def calc(context, output):
+            output.SetFromVector(context.get_continuous_state_vector().value()[2 * q : 2 * q + 2])
+        return calc

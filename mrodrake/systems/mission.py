@@ -32,11 +32,11 @@ from mrodrake.planning.plan import Plan, PlanVerificationError, task_nba, task_w
 from mrodrake.planning.steps import expand_steps
 from mrodrake.scenario import Scenario
 from mrodrake.systems.builders import (
+    AddControllers,
     AddEntityPlants,
-    AddNavigationControllers,
     AddStateSwitches,
     AddSupervisor,
-    AddTeams,
+    teams_of,
 )
 from mrodrake.systems.transition import TransitionResult
 from mrodrake.ts import TransitionSystem
@@ -148,9 +148,11 @@ class Mission:
 
     Before anything is built, the whole executed run is placed (:func:`~mrodrake.planning.placement.place_run`;
     a geometry that cannot be realised raises a one-line :class:`~mrodrake.planning.placement.PlacementError`
-    naming the step and region).  The diagram (:mod:`mrodrake.systems.builders`): a plant per robot and object,
-    a navigation controller per robot, a team plant and transport controller per (object, team) of the plan's
-    transports, a state switch per entity, the :class:`~mrodrake.systems.supervisor.Supervisor` (the
+    naming the step and region).  The diagram (:mod:`mrodrake.systems.builders`): one
+    :class:`~mrodrake.systems.plants.MissionPlants` system with a plant per robot and object and a team plant
+    per (object, team) of the plan's transports, one :class:`~mrodrake.systems.controllers.MissionControllers`
+    system with a navigation controller per robot and a transport controller per team plant, a state switch
+    per entity, the :class:`~mrodrake.systems.supervisor.Supervisor` (the
     sequencer's ports) and a :class:`MissionLogger`.
 
     Integration: Drake's error-controlled RK3 with ``accuracy`` 1e-3.  Drake weights every state component
@@ -185,23 +187,21 @@ class Mission:
 
         b = DiagramBuilder()
         gains = AdaptiveGains.from_scenario(scenario.control)
-        self.plants = AddEntityPlants(b, scenario)
-        self.nav_ctrls = AddNavigationControllers(b, scenario, self.plants, gains)
-        self.teams = AddTeams(b, scenario, self.sequencer, gains)
-        self.switches = AddStateSwitches(b, scenario, self.plants, self.teams, self.nav_ctrls)
-        self.supervisor = AddSupervisor(b, self.sequencer, self.plants, self.teams, self.nav_ctrls, self.switches,
+        self.plants = AddEntityPlants(b, scenario, self.sequencer)
+        self.teams = teams_of(scenario, self.sequencer)
+        self.controllers = AddControllers(b, scenario, self.plants, self.teams, gains)
+        self.switches = AddStateSwitches(b, scenario, self.plants, self.teams, self.controllers)
+        self.supervisor = AddSupervisor(b, self.sequencer, self.plants, self.controllers, self.switches,
                                         check_period)
         entities = scenario.robot_names + scenario.object_names
         ctrl_info = {f"nav_{r}": (r, ()) for r in scenario.robot_names}
-        ctrl_info.update({t.name + "_ctrl": (scenario.object_names[t.obj], tuple(t.plant.members)) for t in self.teams})
+        ctrl_info.update({t.controller: (scenario.object_names[t.obj], t.members) for t in self.teams})
         self.logger = b.AddSystem(MissionLogger(entities, ctrl_info, log_period))
         for k, e in enumerate(entities):
             b.Connect(self.switches.switches[e].get_output_port(), self.logger.state_ports[k])
-        controllers = {f"nav_{r}": c for r, c in self.nav_ctrls.items()}
-        controllers.update({t.name + "_ctrl": t.controller for t in self.teams})
-        for c, ctrl in controllers.items():
-            b.Connect(ctrl.u_port, self.logger.u_ports[c])
-            b.Connect(ctrl.estimates_port, self.logger.est_ports[c])
+        for c in self.controllers.names:
+            b.Connect(self.controllers.u_ports[c], self.logger.u_ports[c])
+            b.Connect(self.controllers.estimates_ports[c], self.logger.est_ports[c])
             b.Connect(self.supervisor.task_ports[c], self.logger.task_ports[c])
         self.diagram = b.Build()
         self.diagram.set_name("mission")
@@ -211,17 +211,18 @@ class Mission:
                                              max_step_size=max_step, use_error_control=True), self.simulator)
         ctx = self.simulator.get_mutable_context()
         init = np.asarray(self.placement.initial, dtype=float).reshape(-1, 2)
-        for e, p in self.plants.all().items():
-            p.set_state(p.GetMyMutableContextFromRoot(ctx), init[entities.index(e)], (0.0, 0.0))
+        plants = self.plants.system
+        pctx = plants.GetMyMutableContextFromRoot(ctx)
+        for k, e in enumerate(entities):
+            plants.set_state(pctx, e, init[k], (0.0, 0.0))
         for t in self.teams:
-            t.plant.set_state(t.plant.GetMyMutableContextFromRoot(ctx), init[len(scenario.robots) + t.obj], (0.0, 0.0))
+            plants.set_state(pctx, t.name, init[len(scenario.robots) + t.obj], (0.0, 0.0))
         self.initial_positions = {e: tuple(init[k]) for k, e in enumerate(entities)}
         self.sim_seconds = 0.0
         self.wall_seconds = 0.0
         self._stop = False
         self._fault = ""
         self._progress, self._last_done = None, -1
-        self._controllers = controllers
         self.simulator.set_monitor(self._Monitor)
 
     # ------------------------------------------------------------------ running
@@ -282,15 +283,12 @@ class Mission:
         on its NaN derivatives), ends ``AdvanceTo``; progress is reported per completed plan step."""
         if self._stop:
             return EventStatus.ReachedTermination(self.diagram, "stopped by the user")
-        st = self.supervisor.exec_state(self.supervisor.GetMyContextFromRoot(root_context))
-        for name, cmd in st.tasks.items():
-            if cmd is not None:
-                ctrl = self._controllers[name]
-                why = ctrl.fault(ctrl.GetMyContextFromRoot(root_context))
-                if why:
-                    self._fault = f"controller fault of {name}: {why}"
-                    return EventStatus.ReachedTermination(self.diagram, self._fault)
+        fault = self.controllers.first_fault(self.controllers.GetMyContextFromRoot(root_context))
+        if fault is not None:
+            self._fault = f"controller fault of {fault[0]}: {fault[1]}"
+            return EventStatus.ReachedTermination(self.diagram, self._fault)
         if self._progress is not None:
+            st = self.supervisor.exec_state(self.supervisor.GetMyContextFromRoot(root_context))
             done = self.sequencer.steps_done(st)
             if done != self._last_done:
                 self._last_done = done

@@ -14,10 +14,10 @@ scenario :class:`~mrodrake.scenario.Friction`) is structural and fixed at constr
 
 The contact forces h (robot, object) are optional inputs: zero while unconnected.
 
-In a mission every plant has an abstract ``sync`` input (:class:`~mrodrake.execution.commands.SyncCommand`):
-a per-step unrestricted update copies the commanded [x, ẋ] into the plant's own state when the command's
-version changes (an event may change only its own system's state), and a parked plant has zero dynamics
-(:class:`SyncedRobotPlant`, :class:`SyncedObjectPlant`, :class:`SyncedCoupledPlant`).
+In a mission all plants, the team plants included, are one :class:`MissionPlants` system: every plant
+has an abstract ``sync`` input (:class:`~mrodrake.execution.commands.SyncCommand`); a per-step unrestricted
+update copies the commanded [x, ẋ] into the plant's state when the command's version changes, and a parked
+plant has zero dynamics (one derivative call computes the moving plants only).
 """
 
 from __future__ import annotations
@@ -27,7 +27,7 @@ from collections.abc import Sequence
 
 import numpy as np
 from pydrake.common.value import AbstractValue
-from pydrake.systems.framework import BasicVector, ContinuousStateIndex, LeafSystem
+from pydrake.systems.framework import BasicVector, ContinuousStateIndex, EventStatus, LeafSystem, ValueProducer
 
 from mrodrake.execution.commands import SyncCommand
 from mrodrake.scenario import Friction, Scenario
@@ -217,87 +217,161 @@ class CoupledPlant(_PointMassPlant):
         derivatives.get_mutable_vector().SetFromVector(np.concatenate([v, (u - f_total) / m_total]))
 
 
-# ------------------------------------------------------------------------------------------ synced plants (missions)
-def _declare_sync(plant) -> None:
-    plant.sync_port = plant.DeclareAbstractInputPort("sync", AbstractValue.Make(SyncCommand()))
-    plant._version_index = plant.DeclareDiscreteState([-1.0])  # numeric: cheap per-step copies
-    plant.DeclarePerStepUnrestrictedUpdateEvent(plant._Sync)
+# ------------------------------------------------------------------------------------------ the plants of a mission
+class MissionPlants(LeafSystem):
+    """Every plant of a mission in one LeafSystem: a body per robot and per object (eqs. (1), (2), without
+    contact forces) and a team plant per (object, team) of the plan's transports (eq. (5)).
 
+    Continuous state: [x, ẋ] of every plant in :attr:`names` order (robots, objects, teams), 4 entries each;
+    output ``state`` is all of it (a Demultiplexer gives each plant its own port).  Inputs: ``u_<robot>`` (2)
+    per robot, ``u_<team>_<member>`` (2) per team member, and an abstract ``sync_<plant>``
+    (:class:`~mrodrake.execution.commands.SyncCommand`) per plant, which must be connected.  Outputs
+    ``member_<team>_<robot>`` = [x^o + offset_i, ẋ^o] per team member, with the grasp offsets of the team's
+    sync command (the members' actual offsets at engagement).  Numeric parameter b is the true
+    [mass, friction scale, friction frequency] of robot b, then of each object; a team plant uses those of
+    its object and members.
 
-def _apply_sync(plant, context, state) -> None:
-    cmd = plant.sync_port.Eval(context)
-    if cmd.version == context.get_discrete_state(int(plant._version_index)).GetAtIndex(0):
-        return
-    state.get_mutable_discrete_state(int(plant._version_index)).SetAtIndex(0, float(cmd.version))
-    state.get_mutable_continuous_state().SetFromVector(np.concatenate([cmd.x, cmd.v]))
+    A plant whose sync command is ``frozen`` is parked: zero dynamics, and its inputs are not evaluated, so a
+    derivative evaluation costs one call for all plants and computes only the moving ones.  A per-step
+    unrestricted update copies the commanded [x, ẋ] into a plant's state when its command's version changes.
+    """
 
+    def __init__(self, scenario: Scenario, teams: Sequence[tuple[str, int, Sequence[int]]] = (),
+                 name: str = "plants"):
+        """``teams``: (name, object index, robot indices) of every team plant."""
+        super().__init__()
+        self.set_name(name)
+        bodies = list(scenario.robots) + list(scenario.objects)
+        self.robot_names = [r.name for r in scenario.robots]
+        self.object_names = [o.name for o in scenario.objects]
+        n_r = len(self.robot_names)
+        self.teams = [(str(t), int(j), tuple(int(i) for i in team)) for t, j, team in teams]
+        self.names = self.robot_names + self.object_names + [t for t, _, _ in self.teams]
+        if len(set(self.names)) != len(self.names):
+            raise ValueError(f"duplicate plant names: {self.names}")
+        self._models = []
+        for b in bodies:
+            model, scale, freq = _friction_spec(b.friction)
+            if not (math.isfinite(b.mass) and b.mass > 0):
+                raise ValueError(f"mass must be a finite positive number, got {b.mass!r}")
+            self._models.append(model)
+            self.DeclareNumericParameter(BasicVector([float(b.mass), scale, freq]))
+        # a team plant's bodies: its object's parameter index, then its members'
+        self._team_bodies = [(n_r + j, team) for _, j, team in self.teams]
+        for _, _, team in self.teams:
+            if not team or len(set(team)) != len(team):
+                raise ValueError(f"a team needs distinct members, got {team}")
+        self.DeclareContinuousState(4 * len(self.names))
+        self.state_port = self.DeclareStateOutputPort("state", ContinuousStateIndex(0))
+        self.u_ports = {r: self.DeclareVectorInputPort(f"u_{r}", 2) for r in self.robot_names}
+        self.team_u_ports = {t: [self.DeclareVectorInputPort(f"u_{t}_{self.robot_names[i]}", 2) for i in team]
+                             for t, _, team in self.teams}
+        self.sync_ports = {p: self.DeclareAbstractInputPort(f"sync_{p}", AbstractValue.Make(SyncCommand()))
+                           for p in self.names}
+        self._sync_list = [self.sync_ports[p] for p in self.names]
+        self._robot_u = [self.u_ports[r] for r in self.robot_names]
+        self._team_u = [self.team_u_ports[t] for t, _, _ in self.teams]
+        self._version_index = self.DeclareDiscreteState(np.full(len(self.names), -1.0))
+        self._syncs = self.DeclareCacheEntry(
+            "sync commands", ValueProducer(allocate=lambda: AbstractValue.Make(None), calc=self._CalcSyncs),
+            prerequisites_of_calc={p.ticket() for p in self._sync_list})
+        pre = {self.xc_ticket(), self._syncs.ticket()}
+        self.member_ports = {t: [self.DeclareVectorOutputPort(f"member_{t}_{self.robot_names[i]}", 4,
+                                                              self._member_out(q, k), prerequisites_of_calc=pre)
+                                 for k, i in enumerate(team)]
+                             for q, (t, _, team) in enumerate(self.teams)}
+        self.DeclarePerStepUnrestrictedUpdateEvent(self._Sync)
 
-class _SyncedBody:
-    """Mixin for a one-body plant: an abstract ``sync`` input (state reset by version, parking brake)."""
+    # ------------------------------------------------------------------ names and state
+    def index(self, plant: str) -> int:
+        """Position of ``plant`` (a robot, object or team name) in :attr:`names`."""
+        return self.names.index(plant)
 
-    def __init__(self, *args, **kwargs):
-        super().__init__(*args, **kwargs)
-        _declare_sync(self)
+    def set_state(self, context, plant: str, x, xdot=(0.0, 0.0)) -> None:
+        """Set [x, ẋ] of ``plant`` in this system's (sub)context."""
+        k = 4 * self.index(plant)
+        s = context.get_continuous_state_vector().CopyToVector()
+        s[k : k + 2] = np.asarray(x, dtype=float)
+        s[k + 2 : k + 4] = np.asarray(xdot, dtype=float)
+        context.SetContinuousState(s)
+
+    def plant_state(self, context, plant: str) -> np.ndarray:
+        """[x, ẋ] of ``plant`` in this system's (sub)context."""
+        k = 4 * self.index(plant)
+        return context.get_continuous_state_vector().CopyToVector()[k : k + 4]
+
+    def body_parameters(self, context, body: int) -> np.ndarray:
+        """[mass, scale, frequency] of body ``body`` (robots, then objects) in ``context``."""
+        return context.get_numeric_parameter(body).CopyToVector()
+
+    def moving(self, context) -> list[str]:
+        """The plants whose sync command does not park them."""
+        return [self.names[k] for k in self._syncs.Eval(context)[0]]
+
+    # ------------------------------------------------------------------ sync commands
+    def _CalcSyncs(self, context, value):
+        cmds = [p.Eval(context) for p in self._sync_list]
+        moving = tuple(k for k, c in enumerate(cmds) if not c.frozen)
+        versions = np.array([c.version for c in cmds], dtype=float)
+        n_e = len(self.robot_names) + len(self.object_names)
+        offsets = []
+        for q, (_, team) in enumerate(self._team_bodies):
+            off = cmds[n_e + q].offsets
+            offsets.append(np.asarray(off, dtype=float).reshape(len(team), 2) if len(off) else np.zeros((len(team), 2)))
+        value.set_value((moving, versions, cmds, offsets))
 
     def _Sync(self, context, state):
-        _apply_sync(self, context, state)
+        _, versions, cmds, _ = self._syncs.Eval(context)
+        changed = np.flatnonzero(versions != context.get_discrete_state(int(self._version_index)).value())
+        if len(changed) == 0:
+            return EventStatus.DidNothing()
+        s = context.get_continuous_state_vector().CopyToVector()
+        for k in changed:
+            s[4 * k : 4 * k + 4] = np.concatenate([cmds[k].x, cmds[k].v])
+        state.get_mutable_continuous_state().SetFromVector(s)
+        state.get_mutable_discrete_state(int(self._version_index)).SetFromVector(versions)
+        return EventStatus.Succeeded()
 
-    def DoCalcTimeDerivatives(self, context, derivatives):
-        if self.sync_port.Eval(context).frozen:
-            derivatives.get_mutable_vector().SetZero()
-            return
-        super().DoCalcTimeDerivatives(context, derivatives)
+    # ------------------------------------------------------------------ dynamics
+    def _body_friction(self, context, body: int, x: np.ndarray, xdot: np.ndarray) -> tuple[float, np.ndarray]:
+        m, scale, freq = context.get_numeric_parameter(body).value()
+        return m, friction(self._models[body], scale, freq, x, xdot)
 
-
-class SyncedRobotPlant(_SyncedBody, RobotPlant):
-    """RobotPlant with an abstract ``sync`` input (state reset by version, parking brake)."""
-
-
-class SyncedObjectPlant(_SyncedBody, ObjectPlant):
-    """ObjectPlant with an abstract ``sync`` input (state reset by version, parking brake)."""
-
-
-class SyncedCoupledPlant(CoupledPlant):
-    """CoupledPlant whose grasp offsets come from the ``sync`` command (the members' actual offsets at
-    engagement); outputs ``member_<name>`` = [x^o + offset_i, ẋ^o] (eq. (5))."""
-
-    def __init__(self, object_mass, object_friction, members, member_masses, member_frictions, name="team"):
-        super().__init__(object_mass, object_friction, members, member_masses, member_frictions,
-                         np.zeros((len(members), 2)), name=name)
-        _declare_sync(self)
-        pre = {self.xc_ticket(), self.sync_port.ticket()}
-        self.member_ports = [self.DeclareVectorOutputPort(f"member_{n}", 4, self._member_out(k),
-                                                          prerequisites_of_calc=pre)
-                             for k, n in enumerate(self.members)]
-
-    def _offsets(self, context) -> np.ndarray:
-        off = self.sync_port.Eval(context).offsets
-        n = len(self.members)
-        return np.asarray(off, dtype=float).reshape(n, 2) if len(off) else np.zeros((n, 2))
-
-    def _member_out(self, k: int):
-        def calc(context, output):
-            s = context.get_continuous_state_vector().CopyToVector()
-            s[:2] += self._offsets(context)[k]
-            output.SetFromVector(s)
-        return calc
-
-    def _Sync(self, context, state):
-        _apply_sync(self, context, state)
-
-    def DoCalcTimeDerivatives(self, context, derivatives):
-        cmd = self.sync_port.Eval(context)
-        if cmd.frozen:
-            derivatives.get_mutable_vector().SetZero()
-            return
-        s = context.get_continuous_state_vector().value()
-        x, v = s[:2], s[2:]
-        offsets = self._offsets(context)
-        m_total, f_total = self._body_friction(context, 0, x, v)
+    def _acceleration(self, context, k: int, x: np.ndarray, v: np.ndarray, offsets) -> np.ndarray:
+        n_r, n_e = len(self.robot_names), len(self.robot_names) + len(self.object_names)
+        if k < n_r:  # robot: m ẍ + f = u
+            m, f = self._body_friction(context, k, x, v)
+            return (self._robot_u[k].Eval(context) - f) / m
+        if k < n_e:  # object without contact: m ẍ + f = 0
+            m, f = self._body_friction(context, k, x, v)
+            return (0.0 - f) / m
+        q = k - n_e  # team: m_A ẍ + f_A = Σ u_i
+        obj, team = self._team_bodies[q]
+        m_total, f_total = self._body_friction(context, obj, x, v)
         u = np.zeros(2)
-        for k, port in enumerate(self.u_ports):
-            m_k, f_k = self._body_friction(context, k + 1, x + offsets[k], v)
+        for b, (i, port) in enumerate(zip(team, self._team_u[q])):
+            m_k, f_k = self._body_friction(context, i, x + offsets[q][b], v)
             m_total += m_k
             f_total = f_total + f_k
             u += port.Eval(context)
-        derivatives.get_mutable_vector().SetFromVector(np.concatenate([v, (u - f_total) / m_total]))
+        return (u - f_total) / m_total
+
+    def DoCalcTimeDerivatives(self, context, derivatives):
+        moving, _, _, offsets = self._syncs.Eval(context)
+        out = np.zeros(4 * len(self.names))
+        if moving:
+            s = context.get_continuous_state_vector().value()
+            for k in moving:
+                x, v = s[4 * k : 4 * k + 2], s[4 * k + 2 : 4 * k + 4]
+                out[4 * k : 4 * k + 2] = v
+                out[4 * k + 2 : 4 * k + 4] = self._acceleration(context, k, x, v, offsets)
+        derivatives.get_mutable_vector().SetFromVector(out)
+
+    def _member_out(self, q: int, k: int):
+        b = 4 * (len(self.robot_names) + len(self.object_names) + q)
+
+        def calc(context, output):
+            s = context.get_continuous_state_vector().CopyToVector()[b : b + 4]
+            s[:2] += self._syncs.Eval(context)[3][q][k]
+            output.SetFromVector(s)
+        return calc

@@ -11,8 +11,9 @@ from hypothesis import given
 from hypothesis import strategies as st
 from pydrake.systems.analysis import Simulator
 
+from mrodrake.execution.commands import SyncCommand
 from mrodrake.scenario import Friction, load_scenario
-from mrodrake.systems.plants import CoupledPlant, ObjectPlant, RobotPlant, friction
+from mrodrake.systems.plants import CoupledPlant, MissionPlants, ObjectPlant, RobotPlant, friction
 
 SCEN = Path(__file__).resolve().parents[2] / "scenarios"
 num = st.floats(-100, 100, allow_nan=False)
@@ -130,3 +131,80 @@ def test_invalid_plants():
         CoupledPlant(1.0, None, ["a", "a"], [1.0, 1.0], [None, None], np.zeros((2, 2)))
     with pytest.raises(ValueError):
         CoupledPlant(1.0, None, [], [], [], np.zeros((0, 2)))
+
+
+def _mission_plants(case1, moving, offsets):
+    """MissionPlants of case I with team o2_r1+r3 (object 1, robots 0, 2); the plants in ``moving`` unfrozen,
+    every sync command at version 0 with state (x, v) = (k, −k, 0.1 k, 0.2 k) for plant k."""
+    plants = MissionPlants(case1, [("o2_r1+r3", 1, (0, 2))])
+    ctx = plants.CreateDefaultContext()
+    for k, name in enumerate(plants.names):
+        off = tuple(map(tuple, offsets)) if name == "o2_r1+r3" else ()
+        cmd = SyncCommand(0, (float(k), -float(k)), (0.1 * k, 0.2 * k), name not in moving, off)
+        plants.sync_ports[name].FixValue(ctx, cmd)
+    return plants, ctx
+
+
+def test_mission_plants_compute_the_single_plants(case1):
+    """Every moving plant of MissionPlants has the dynamics of its single plant (the same floating-point
+    operations: equal to the last bit); parked plants have zero dynamics."""
+    offsets = np.array([[0.8, 0.3], [-0.6, -0.9]])
+    plants, ctx = _mission_plants(case1, {"r2", "o1", "o2_r1+r3"}, offsets)
+    names = plants.names
+    assert names == ["r1", "r2", "r3", "o1", "o2", "o2_r1+r3"]
+    rng = np.random.default_rng(3)
+    s = rng.uniform(-5.0, 5.0, 4 * len(names))
+    ctx.SetContinuousState(s)
+    u_r2, u_team = np.array([1.0, -2.0]), [np.array([0.5, 0.25]), np.array([-1.5, 2.0])]
+    plants.u_ports["r2"].FixValue(ctx, u_r2)  # the parked robots' inputs stay unconnected: never evaluated
+    for port, u in zip(plants.team_u_ports["o2_r1+r3"], u_team):
+        port.FixValue(ctx, u)
+    xdot = plants.EvalTimeDerivatives(ctx).CopyToVector().reshape(-1, 4)
+    for k in (0, 2, 4):
+        np.testing.assert_array_equal(xdot[k], 0.0)
+
+    robot = RobotPlant.from_scenario(case1, "r2")
+    rc = robot.CreateDefaultContext()
+    robot.set_state(rc, s[4:6], s[6:8])
+    robot.u_port.FixValue(rc, u_r2)
+    np.testing.assert_array_equal(xdot[1], _xdot(robot, rc))
+    obj = ObjectPlant.from_scenario(case1, "o1")
+    oc = obj.CreateDefaultContext()
+    obj.set_state(oc, s[12:14], s[14:16])
+    np.testing.assert_array_equal(xdot[3], _xdot(obj, oc))
+    team = CoupledPlant.from_scenario(case1, "o2", ["r1", "r3"], offsets=offsets)
+    tc = team.CreateDefaultContext()
+    team.set_state(tc, s[20:22], s[22:24])
+    for port, u in zip(team.u_ports, u_team):
+        port.FixValue(tc, u)
+    np.testing.assert_array_equal(xdot[5], _xdot(team, tc))
+    for k, name in enumerate(["r1", "r3"]):
+        np.testing.assert_array_equal(plants.member_ports["o2_r1+r3"][k].Eval(ctx),
+                                      team.GetOutputPort(f"state_{name}").Eval(tc))
+    assert plants.moving(ctx) == ["r2", "o1", "o2_r1+r3"]
+
+
+def test_mission_plants_sync_on_a_new_version(case1):
+    """A per-step update copies a plant's commanded [x, ẋ] when its command's version changes; a parked
+    plant then stays there."""
+    plants, ctx = _mission_plants(case1, set(), np.zeros((2, 2)))
+    sim = Simulator(plants, ctx)
+    sim.AdvanceTo(1.0)
+    s = ctx.get_continuous_state_vector().CopyToVector().reshape(-1, 4)
+    k = np.arange(len(plants.names), dtype=float)
+    np.testing.assert_array_equal(s, np.column_stack([k, -k, 0.1 * k, 0.2 * k]))
+    plants.sync_ports["r3"].FixValue(ctx, SyncCommand(1, (7.0, 8.0), (0.0, 0.0), True, ()))
+    sim.AdvanceTo(2.0)
+    np.testing.assert_array_equal(plants.plant_state(ctx, "r3"), [7.0, 8.0, 0.0, 0.0])
+    np.testing.assert_array_equal(plants.plant_state(ctx, "r2"), [1.0, -1.0, 0.1, 0.2])
+
+
+def test_mission_plant_states_do_not_feed_through_the_forces(case1):
+    plants = MissionPlants(case1, [("o1_r1+r2", 0, (0, 1))])
+    forces = [plants.u_ports[r].get_index() for r in plants.robot_names]
+    forces += [p.get_index() for p in plants.team_u_ports["o1_r1+r2"]]
+    for i in forces:
+        for o in range(plants.num_output_ports()):
+            assert not plants.HasDirectFeedthrough(int(i), o)
+    with pytest.raises(ValueError):
+        MissionPlants(case1, [("o1_r1+r1", 0, (0, 0))])

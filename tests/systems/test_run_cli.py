@@ -13,7 +13,7 @@ from mrodrake.control.adaptive import NavigationTask
 from mrodrake.planning.plan import plan_scenario
 from mrodrake.run import run_mission
 from mrodrake.scenario import load_scenario
-from mrodrake.systems.plants import SyncedCoupledPlant
+from mrodrake.systems.plants import MissionPlants
 
 ROOT = Path(__file__).resolve().parents[2]
 TINY = ROOT / "scenarios" / "tiny.yaml"
@@ -64,14 +64,15 @@ def test_unwritable_output_directory_fails_before_planning(capsys):
 
 def _fail_transports(monkeypatch):
     """Make the first transport's plant raise Drake's integrator failure from inside the simulation."""
-    original = SyncedCoupledPlant.DoCalcTimeDerivatives
+    original = MissionPlants.DoCalcTimeDerivatives
 
     def failing(self, context, derivatives):
-        if not self.sync_port.Eval(context).frozen and context.get_time() > 1.0:
+        teams = {t for t, _, _ in self.teams}
+        if teams.intersection(self.moving(context)) and context.get_time() > 1.0:
             raise RuntimeError("Error control wants to select step smaller than minimum allowed (2.0e-11)\nmore")
         original(self, context, derivatives)
 
-    monkeypatch.setattr(SyncedCoupledPlant, "DoCalcTimeDerivatives", failing)
+    monkeypatch.setattr(MissionPlants, "DoCalcTimeDerivatives", failing)
 
 
 def test_exception_inside_the_simulation_is_a_failed_primitive_with_logs(tmp_path, capsys, monkeypatch):

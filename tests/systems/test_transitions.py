@@ -23,11 +23,12 @@ from shapely.geometry import Point, box
 
 from mrodrake.control.adaptive import AdaptiveGains, NavigationTask
 from mrodrake.control.freespace import Disk
+from mrodrake.control.local import local_task
 from mrodrake.control.pointworld import PointWorldMap
 from mrodrake.errors import UserError
 from mrodrake.execution.commands import TaskCommand
 from mrodrake.scenario import DESIGN_MASS_RATIO, load_scenario
-from mrodrake.systems.controllers import NavigationController, TransportController
+from mrodrake.systems.controllers import MissionControllers, NavigationController, TransportController
 from mrodrake.systems.transition import simulate_transition
 from mrodrake.viz.figures import figure_signals, figure_trajectory
 from tests.helpers.transitions import CASE1, SCEN, check_guarantees
@@ -226,6 +227,78 @@ def test_new_episode_resets_the_estimates_and_a_new_task_within_it_does_not(room
     ctrl.task_port.FixValue(ctx, AbstractValue.Make(TaskCommand(other, 2)))
     sim.AdvanceTo(1.0 + 2e-9)
     np.testing.assert_allclose(ctx.get_continuous_state_vector().CopyToVector(), [5.0, 2.0], atol=1e-6)
+
+
+def test_mission_controllers_compute_the_single_controllers(room_task):
+    """MissionControllers gives every active controller the outputs and rates of its single controller (the
+    same floating-point operations: equal to the last bit); an idle one has zero input and frozen estimates,
+    and its state input is never evaluated."""
+    team_task = dataclasses.replace(room_task, cf=np.array([0.25, 0.75]))
+    gains = room_task.gains
+    bank = MissionControllers([("nav_a", ()), ("nav_b", ()), ("ab_ctrl", ("a", "b"))], gains)
+    ctx = bank.CreateDefaultContext()
+    s_a, s_t = np.array([3.0, 4.0, 0.2, -0.1]), np.array([5.0, 3.0, -0.3, 0.4])
+    bank.state_ports["nav_a"].FixValue(ctx, s_a)
+    bank.state_ports["ab_ctrl"].FixValue(ctx, s_t)
+    bank.task_ports["nav_a"].FixValue(ctx, AbstractValue.Make(TaskCommand(room_task, 0)))
+    bank.task_ports["nav_b"].FixValue(ctx, AbstractValue.Make(None))
+    bank.task_ports["ab_ctrl"].FixValue(ctx, AbstractValue.Make(TaskCommand(team_task, 0)))
+    bank.set_estimates(ctx, "ab_ctrl", 1.5, 2.5)
+    rates = bank.EvalTimeDerivatives(ctx).CopyToVector()
+
+    nav = NavigationController(room_task)
+    nc = nav.CreateDefaultContext()
+    nav.state_port.FixValue(nc, s_a)
+    np.testing.assert_array_equal(bank.u_ports["nav_a"].Eval(ctx), nav.u_port.Eval(nc))
+    np.testing.assert_array_equal(rates[0:2], nav.EvalTimeDerivatives(nc).CopyToVector())
+    np.testing.assert_array_equal(bank.u_ports["nav_b"].Eval(ctx), 0.0)
+    np.testing.assert_array_equal(rates[2:4], 0.0)
+    team = TransportController(["a", "b"], team_task)
+    tc = team.CreateDefaultContext()
+    team.state_port.FixValue(tc, s_t)
+    team.set_estimates(tc, 1.5, 2.5)
+    np.testing.assert_array_equal(rates[4:6], team.EvalTimeDerivatives(tc).CopyToVector())
+    for k in range(2):
+        np.testing.assert_array_equal(bank.member_u_ports["ab_ctrl"][k].Eval(ctx),
+                                      team.member_u_ports[k].Eval(tc))
+    np.testing.assert_array_equal(bank.estimates_ports["ab_ctrl"].Eval(ctx), [1.5, 2.5])
+    assert bank.fault(ctx, "nav_b") == "" and bank.fault(ctx, "nav_a") == nav.fault(nc) == ""
+    assert bank.first_fault(ctx) is None
+    past_pole = local_task([5.0, 0.0], [[2.5, 1.5]], [1.0], [0.0, 0.0], 8.0, gains, k1=0.25, k2=5.0, cf=2,
+                           start=[0.0, 0.0])
+    bank.task_ports["ab_ctrl"].FixValue(ctx, AbstractValue.Make(TaskCommand(past_pole, 0)))
+    bank.state_ports["ab_ctrl"].FixValue(ctx, [2.5, 1.0, 0.3, 0.0])  # inside the other entity's disk
+    name, why = bank.first_fault(ctx)
+    assert name == "ab_ctrl" and why == bank.fault(ctx, "ab_ctrl") != ""
+    for c in bank.names:
+        for o in (bank.estimates_ports[c].get_index(),):
+            assert not bank.HasDirectFeedthrough(int(bank.state_ports[c].get_index()), int(o))
+
+
+def test_mission_controllers_reset_only_on_a_new_episode(room_task):
+    """As a single controller: a new task within an episode keeps m̂, α̂; a new episode restarts them from its
+    task's m̂(0), α̂(0) at the next step; the other controllers are untouched."""
+    bank = MissionControllers([("nav_a", ()), ("nav_b", ())], room_task.gains)
+    ctx = bank.CreateDefaultContext()
+    bank.state_ports["nav_a"].FixValue(ctx, [3.0, 4.0, 1.0, 1.0])
+    bank.task_ports["nav_a"].FixValue(ctx, AbstractValue.Make(TaskCommand(room_task, 1)))
+    bank.task_ports["nav_b"].FixValue(ctx, AbstractValue.Make(None))
+    bank.set_estimates(ctx, "nav_b", 3.0, 4.0)
+    sim = Simulator(bank, ctx)
+    sim.AdvanceTo(1.0)
+    moved = bank.estimates(ctx, "nav_a")
+    assert moved[1] > 0.1  # α̂ grew (‖e_v‖ > 0)
+    other = NavigationTask(room_task.pw_map, room_task.nf, room_task.goal, AdaptiveGains(m_hat0=5.0, alpha_hat0=2.0),
+                           room_task.cf)
+    bank.task_ports["nav_a"].FixValue(ctx, AbstractValue.Make(TaskCommand(other, 1)))
+    sim.AdvanceTo(1.0 + 1e-9)
+    np.testing.assert_allclose(bank.estimates(ctx, "nav_a"), moved, rtol=1e-6)
+    bank.task_ports["nav_a"].FixValue(ctx, AbstractValue.Make(TaskCommand(other, 2)))
+    sim.AdvanceTo(1.0 + 2e-9)
+    np.testing.assert_allclose(bank.estimates(ctx, "nav_a"), [5.0, 2.0], atol=1e-6)
+    np.testing.assert_array_equal(bank.estimates(ctx, "nav_b"), [3.0, 4.0])
+    with pytest.raises(ValueError):
+        MissionControllers([("c", ()), ("c", ())], room_task.gains)
 
 
 def test_bad_requests_are_user_errors():
