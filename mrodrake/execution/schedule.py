@@ -225,15 +225,6 @@ def dependency_graph(ts: TransitionSystem, words, placement: Placement,
     return tuple(jobs)
 
 
-def critical_path(jobs: Sequence[Job], durations: Sequence[float]) -> float:
-    """Makespan of ``jobs`` run as early as their predecessors allow with the given durations (no waits for
-    corridors): a lower bound of the concurrent makespan."""
-    end = np.zeros(len(jobs))
-    for j in jobs:
-        end[j.uid] = max((end[p] for p in j.preds), default=0.0) + float(durations[j.uid])
-    return float(end.max()) if len(jobs) else 0.0
-
-
 def _component(geom, point: Point) -> Polygon | None:
     parts = list(geom.geoms) if hasattr(geom, "geoms") else [geom]
     return next((p for p in parts if isinstance(p, Polygon) and p.contains(point)), None)

@@ -252,8 +252,7 @@ class Sequencer:
             self.jobs, self.block_end = dependency_graph(ts, words, placement, order), order.block_end
         self.block_start = tuple(min(t for t in range(s + 1) if self.block_end[t] == self.block_end[s])
                                  for s in range(len(self.steps)))
-        ws = scenario.workspace
-        self._floor = polygon(ws.boundary)
+        self._floor = polygon(scenario.workspace.boundary)
 
     # ------------------------------------------------------------------ names
     def team_name(self, j: int, team: Sequence[int]) -> str:
@@ -574,14 +573,13 @@ class Sequencer:
         start, goal = X[entity, :2].copy(), np.asarray(op.goal, dtype=float)
         offsets = tuple(map(tuple, np.asarray(offsets, dtype=float).reshape(-1, 2)))
         limit = self._limit(float(np.hypot(*(goal - start))))
-        m = Motion(op.kind, entity, team, controller, plant, src, dst, radius, tuple(start), tuple(goal), t, limit,
-                   0, None, offsets=offsets)
+        corridor = None
         if self.execution is Execution.CONCURRENT:
             corridor = ed.grants.pop(ed.active.uid, None)
             if corridor is None:
                 return None
-            m = replace(m, corridor=corridor)
-        m = replace(m, episode=self._new_episode(ed))
+        m = Motion(op.kind, entity, team, controller, plant, src, dst, radius, tuple(start), tuple(goal), t, limit,
+                   self._new_episode(ed), None, offsets=offsets, corridor=corridor)
         self._unfreeze(ed, plant)
         return self._exit(ed, X, m) or self._point_world(ed, X, m)
 

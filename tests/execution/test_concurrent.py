@@ -27,6 +27,7 @@ from mrodrake.planning.plan import plan_scenario, task_words
 from mrodrake.planning.semantics import crossings
 from mrodrake.scenario import scenario_from_dict
 from mrodrake.systems.mission import Mission
+from tests.helpers.tasks import region_atoms
 
 
 def _floor(name, boundary, obstacles, regions, formula):
@@ -123,16 +124,11 @@ def test_the_mission_rejects_an_unknown_execution_mode():
 
 
 # ------------------------------------------------------------------------------------------ words
-def _atoms(n: int, m: int, k: int) -> list[str]:
-    return [f"r{i}_p{p}" for i in range(1, n + 1) for p in range(1, k + 1)] + \
-        [f"o{j}_p{p}" for j in range(1, m + 1) for p in range(1, k + 1)]
-
-
 @st.composite
 def _tasks(draw):
     n, m, k = draw(st.integers(2, 4)), draw(st.integers(0, 2)), draw(st.integers(3, 5))
     seed = draw(st.integers(0, 10_000))
-    atoms = st.sampled_from(_atoms(n, m, k))
+    atoms = st.sampled_from(region_atoms(n, m, k))
     lit = st.one_of(atoms, atoms.map(lambda a: f"!{a}"))
     prop = st.one_of(lit, st.builds(lambda a, b: f"({a} & {b})", lit, lit))
     # goals that make several bodies move, and clauses an interleaving of their crossings can break

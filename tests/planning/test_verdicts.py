@@ -27,13 +27,9 @@ from mrodrake.planning.plan import plan_scenario, task_nba
 from mrodrake.planning.semantics import ExecutedWords, check_plan_words, region_changing, relevant_mask
 from mrodrake.scenario import scenario_from_dict
 from mrodrake.ts import TransitionSystem
+from tests.helpers.tasks import region_atoms
 
 FAMILY = "for every plan some executed word violates the task"
-
-
-def _atoms(n: int, m: int, k: int) -> list[str]:
-    return [f"r{i}_p{p}" for i in range(1, n + 1) for p in range(1, k + 1)] + \
-        [f"o{j}_p{p}" for j in range(1, m + 1) for p in range(1, k + 1)]
 
 
 @st.composite
@@ -41,7 +37,7 @@ def _tasks(draw):
     n, m = draw(st.integers(2, 3)), draw(st.integers(1, 2))
     k = 3
     seed = draw(st.integers(0, 10_000))
-    atoms = st.sampled_from(_atoms(n, m, k))
+    atoms = st.sampled_from(region_atoms(n, m, k))
     lit = st.one_of(atoms, atoms.map(lambda a: f"!{a}"))
     conj = st.builds(lambda a, b: f"({a} & {b})", lit, lit)
     prop = st.one_of(lit, conj)
