@@ -185,6 +185,15 @@ def interleavings(cross: Sequence[Crossing]) -> Iterator[list[tuple[int, int]]]:
     yield from rec(0, [])
 
 
+def _mentioned(nba: NBA, q: int) -> int:
+    """The propositions the guards of q's edges mention (δ(q, ·) depends on no other bit of a letter)."""
+    used = 0
+    for guard, _ in nba.edges[q]:
+        for p, n in guard:
+            used |= p | n
+    return used
+
+
 class GuardTable:
     """NBA successors of letters, for states whose guards have many cubes: the cubes as packed bit arrays
     over the propositions they mention, evaluated at once with numpy (same answers as
@@ -272,7 +281,8 @@ class ExecutedWords:
         self.entity_region = np.array([[bool(self.relevant >> (e * K + k) & 1) for k in range(K)]
                                        for e in range(n_ent)], dtype=bool).reshape(n_ent, K)
         self.guards = GuardTable(nba)
-        self._succ_bits: dict[int, list[int]] = {}
+        self._succ_bits: dict[tuple[int, int], int] = {}  # (q, letter & used[q]) -> δ(q, letter) mask
+        self._used = [_mentioned(nba, q) for q in range(self.Q)]
         self._delta: dict[tuple[int, int], int] = {}
         self._lattice: dict[tuple, tuple[frozenset, int]] = {}
         self._cross_ids: dict[tuple, int] = {}
@@ -294,15 +304,14 @@ class ExecutedWords:
         key = (S, letter)
         out = self._delta.get(key)
         if out is None:
-            bits = self._succ_bits.get(letter)
-            if bits is None:
-                bits = self._succ_bits[letter] = [-1] * self.Q  # filled per state on demand
+            succ, used = self._succ_bits, self._used
             out, q, m = 0, 0, S
             while m:
                 if m & 1:
-                    b = bits[q]
-                    if b < 0:
-                        b = bits[q] = self.guards.successors_mask(q, letter)
+                    k = (q, letter & used[q])
+                    b = succ.get(k)
+                    if b is None:
+                        b = succ[k] = self.guards.successors_mask(q, letter)
                     out |= b
                 m >>= 1
                 q += 1
