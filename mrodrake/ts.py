@@ -278,6 +278,11 @@ class TransitionSystem:
             r = self.smallest_team_radius(j)
             if r is None:
                 continue
+            if not any(self.region_fits(m, [r]) for m in range(self.K)):
+                out.append(f"object {self.object_names[j]} can never be carried: no team strong enough fits "
+                           f"in any region (smallest covering radius {r:.2f} m, largest "
+                           f"region radius {max(self.region_radius):.2f} m)")
+                continue
             miss = [names[m] for m in range(self.K) if m not in self.reach(r, k)]
             if miss:
                 out.append(f"object {self.object_names[j]} can never be carried to {', '.join(miss)} from "

@@ -97,3 +97,23 @@ def test_the_power_a_team_needs_decides_which_doors_its_object_passes():
     msg = str(e.value)
     assert msg.startswith("task is unsatisfiable: no accepting cycle of the NBA")
     assert "object o1 can never be carried to p4 from p3" in msg and "covering radius 1.60 m" in msg
+
+
+def test_a_team_larger_than_every_region_is_named_as_the_cause(tmp_path, capsys):
+    """Regions of radius 1.85 m hold a robot (0.75 m) but not a team (covering radius 1.9 m): the blocked object
+    is reported for its size, not for a passage."""
+    data = two_rooms("F o1_p2", passage=8.0)
+    for region in data["regions"]:
+        region["radius"] = 1.85
+    path = tmp_path / "small_regions.yaml"
+    path.write_text(yaml.safe_dump(data))
+    assert cli.main(["validate", str(path)]) == 0
+    out = capsys.readouterr().out.strip().splitlines()
+    assert out[1:] == [f"{path}: object o1 can never be carried: no team strong enough fits in any region "
+                       "(smallest covering radius 1.90 m, largest region radius 1.85 m)"]
+    with pytest.raises(UserError) as e:
+        plan_scenario(scenario_from_dict(data), iterations=50)
+    msg = str(e.value)
+    assert msg.startswith("task is unsatisfiable: object o1 must leave region p1") and "\n" not in msg
+    assert msg.endswith("no team strong enough fits in any region (smallest covering radius 1.90 m, largest region "
+                        "radius 1.85 m)")

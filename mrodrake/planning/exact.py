@@ -104,10 +104,15 @@ def check_power(ts: TransitionSystem, nba: NBA) -> None:
     power, team = stuck[j]
     who = "+".join(ts.robot_names[i] for i in team) if team else "none"
     others = f" (also: {', '.join(ts.object_names[c] for c in culprits[1:])})" if len(culprits) > 1 else ""
+    why = ""
+    best = ts.smallest_team(j)
+    if best is not None:  # strong teams exist, but none fits in a region with the object
+        why = (f"; no team strong enough fits in any region (smallest covering radius "
+               f"{best[1]:.2f} m, largest region radius {max(ts.region_radius):.2f} m)")
     raise UserError(
         f"task is unsatisfiable: object {ts.object_names[j]} must leave region "
         f"{ts.region_names[init[N + j]]} but needs power {ts.required_power[j]:g} and the maximum team "
-        f"power is {power:g} (team {who}){others}"
+        f"power is {power:g} (team {who}){others}{why}"
     )
 
 
