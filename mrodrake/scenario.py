@@ -26,6 +26,7 @@ from pydantic import ConfigDict, Field, TypeAdapter, ValidationError
 from pydantic.dataclasses import dataclass
 
 from mrodrake.errors import UserError
+from mrodrake.geometry import CONTROL_MARGIN
 from mrodrake.packing import place
 
 _CFG = ConfigDict(extra="forbid")
@@ -47,6 +48,10 @@ IDENTIFIER = re.compile(r"^[A-Za-z][A-Za-z0-9_]*$")
 #: (mrodrake.control.adaptive).  Mass: m̂_0 / DESIGN_MASS_RATIO ≤ m ≤ DESIGN_MASS_RATIO · m̂_0 per body (0.1 to
 #: 2.5 kg with the default m̂_0 = 0.5).  ``mrodrake validate`` warns about true parameters outside the range.
 DESIGN_ALPHA_MAX = 5.0
+#: The smallest ``control.margin`` per metre of workspace diameter inside the design range: the largest crossing
+#: of a wall by the panel map's boundary error measured, 0.28 m on the 304 m case-study office, scaled to the
+#: floor (the map's panels are fractions of its diameter, so the error scales with it).
+MARGIN_PER_DIAMETER = 1e-3
 DESIGN_MASS_RATIO = 5.0
 
 
@@ -150,6 +155,9 @@ class ControlGains:
     abstract).  k_v_local exceeds the friction bound α = 2.5 of the paper's f_i (Sec. IV), so that the
     anti-damping part of f_i cannot sustain a limit cycle around the grasp point while α̂ is still small;
     it is per body: a robots-object team (friction bounds add up) uses k_v_local × (1 + members).
+    margin: the clearance (m) beyond its radius that a moving entity keeps from walls, workspace obstacles and
+    other regions (the map's numerical error, :mod:`mrodrake.control.freespace`; it scales with the floor, so a
+    small floor can take a smaller one, see :func:`design_range_warnings`).
     alpha_max: the design friction bound ᾱ per body (:data:`DESIGN_ALPHA_MAX`); every controller starts its
     friction estimate at the bound of its entity, α̂(0) = max(alpha_hat0, n ᾱ) for n bodies (a robot: 1, a
     robots-object team: 1 + members), which keeps the velocity loop damped against any friction with α ≤ ᾱ per
@@ -169,6 +177,7 @@ class ControlGains:
     k1_local: PosNum = 0.25
     k_v_local: PosNum = 4.0
     alpha_max: NonNegNum = DESIGN_ALPHA_MAX
+    margin: PosNum = CONTROL_MARGIN
 
 
 @dataclass(frozen=True, config=_CFG)
@@ -521,8 +530,9 @@ def check_scenario(s: Scenario, where: Where | None = None) -> None:
 
 def design_range_warnings(s: Scenario, where: Where | None = None) -> list[str]:
     """One line ``<file>:<line>: <field path>: ... outside the design range ...`` per true parameter outside the
-    design range of the controllers (:data:`DESIGN_ALPHA_MAX`, :data:`DESIGN_MASS_RATIO`): not an error, the
-    plants simulate any positive mass and friction, but the controllers' guarantees assume the range."""
+    design range of the controllers (:data:`DESIGN_ALPHA_MAX`, :data:`DESIGN_MASS_RATIO`,
+    :data:`MARGIN_PER_DIAMETER`): not an error, the plants simulate any positive mass and friction, but the
+    controllers' guarantees assume the range."""
     where = where or Where("<scenario>", None)
     c = s.control
     lo, hi = c.m_hat0 / DESIGN_MASS_RATIO, c.m_hat0 * DESIGN_MASS_RATIO
@@ -539,7 +549,17 @@ def design_range_warnings(s: Scenario, where: Where | None = None) -> list[str]:
                            f"({b.friction.model} "
                            f"model, scale {b.friction.scale:g}) outside the design range α ≤ {c.alpha_max:g} per body "
                            f"of the controllers (control.alpha_max)")
+    diameter = _diameter(s.workspace.boundary)
+    if c.margin < MARGIN_PER_DIAMETER * diameter:
+        out.append(f"{where(('control', 'margin'))}: {c.margin:g} m outside the design range ≥ "
+                   f"{MARGIN_PER_DIAMETER:g} × the workspace diameter ({MARGIN_PER_DIAMETER * diameter:.3g} m for "
+                   f"{diameter:.3g} m): the map's boundary error may cross it")
     return out
+
+
+def _diameter(boundary) -> float:
+    xy = np.asarray(boundary, dtype=float)
+    return float(np.hypot(*(xy.max(axis=0) - xy.min(axis=0))))
 
 
 def initial_layout(scenario: Scenario) -> dict[str, np.ndarray]:

@@ -39,13 +39,16 @@ import numpy as np
 from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import breadth_first_order
 
-from mrodrake.geometry import CONTROL_MARGIN, RegionGraph, grasp_layout, polygon
+from mrodrake.geometry import RegionGraph, grasp_layout, polygon
 from mrodrake.packing import entities_fit
 from mrodrake.scenario import Scenario
 
-#: Why a travel is blocked: free space is the workspace minus walls, obstacles and other regions grown by the
-#: entity's radius plus the controllers' margin (a fixed length, so it also decides on small-scale maps).
-_NO_PASSAGE = f"no passage wide enough (walls, obstacles and other regions grown by the radius + {CONTROL_MARGIN:g} m)"
+
+def _no_passage(margin: float) -> str:
+    """Why a travel is blocked: free space is the workspace minus walls, obstacles and other regions grown by
+    the entity's radius plus the controllers' margin (``control.margin``)."""
+    return ("no passage wide enough (walls, obstacles and other regions grown by the radius + control.margin "
+            f"{margin:g} m)")
 
 State = tuple
 
@@ -132,6 +135,7 @@ class TransitionSystem:
         self.object_radius = [o.radius for o in scenario.objects]
         self.required_power = [o.required_power for o in scenario.objects]
         self.region_radius = [g.radius for g in scenario.regions]
+        self.margin = float(scenario.control.margin)
         self.centers = np.array([g.center for g in scenario.regions], dtype=float)
         diff = self.centers[:, None, :] - self.centers[None, :, :]
         self.dist = np.sqrt((diff**2).sum(-1))
@@ -196,7 +200,7 @@ class TransitionSystem:
         if self._graph is None:
             ws = self.scenario.workspace
             self._graph = RegionGraph(polygon(ws.boundary), [polygon(o.polygon) for o in ws.obstacles],
-                                      [(g.center, g.radius) for g in self.scenario.regions])
+                                      [(g.center, g.radius) for g in self.scenario.regions], margin=self.margin)
         return self._graph
 
     def connections(self, radius: float) -> np.ndarray:
@@ -222,7 +226,7 @@ class TransitionSystem:
                 continue
             if not self.connected(r, a.src, a.dst):
                 return (f"{who} (radius {r:.2f} m) cannot travel from {self.region_names[a.src]} to "
-                        f"{self.region_names[a.dst]}: {_NO_PASSAGE}")
+                        f"{self.region_names[a.dst]}: {_no_passage(self.margin)}")
         return None
 
     def reach(self, radius: float, k: int) -> list[int]:
@@ -272,7 +276,7 @@ class TransitionSystem:
             miss = [names[m] for m in range(self.K) if m not in self.reach(self.robot_radius[i], k)]
             if miss:
                 out.append(f"robot {self.robot_names[i]} (radius {self.robot_radius[i]:.2f} m) can never reach "
-                           f"{', '.join(miss)} from {names[k]}: {_NO_PASSAGE}")
+                           f"{', '.join(miss)} from {names[k]}: {_no_passage(self.margin)}")
         for j in range(self.M):
             k = self.initial[self.N + j]
             r = self.smallest_team_radius(j)
@@ -286,7 +290,7 @@ class TransitionSystem:
             miss = [names[m] for m in range(self.K) if m not in self.reach(r, k)]
             if miss:
                 out.append(f"object {self.object_names[j]} can never be carried to {', '.join(miss)} from "
-                           f"{names[k]}: {_NO_PASSAGE} for its smallest team (covering radius {r:.2f} m)")
+                           f"{names[k]}: {_no_passage(self.margin)} for its smallest team (covering radius {r:.2f} m)")
         return out
 
     def estimate_size(self, samples: int = 300, per_state: int = 24, seed: int = 0) -> SizeEstimate:

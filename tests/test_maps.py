@@ -11,9 +11,9 @@ from pathlib import Path
 import pytest
 import shapely
 
-from mrodrake.control.freespace import DEFAULT_MARGIN, entity_free_space
+from mrodrake.control.freespace import entity_free_space
 from mrodrake.errors import UserError
-from mrodrake.geometry import grasp_layout, polygon
+from mrodrake.geometry import CONTROL_MARGIN, grasp_layout, polygon
 from mrodrake.scenario import load_scenario
 
 MAPS = Path(__file__).resolve().parents[1] / "scenarios" / "maps"
@@ -46,7 +46,7 @@ def test_regions_keep_the_control_margin(path):
         c = shapely.Point(g.center)
         gaps = [walls.distance(c)] + [o.distance(c) for o in obstacles]
         gaps += [math.dist(g.center, h.center) - h.radius for j, h in enumerate(sc.regions) if j != i]
-        assert min(gaps) - g.radius >= DEFAULT_MARGIN, g.name
+        assert min(gaps) - g.radius >= CONTROL_MARGIN, g.name
 
 
 @pytest.mark.parametrize("path", [p for p in MAP_FILES if p.stem != "narrow"], ids=lambda p: p.stem)

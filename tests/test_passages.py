@@ -62,8 +62,8 @@ def test_validate_reports_the_blocked_travel(tmp_path, capsys):
     out = capsys.readouterr().out.strip().splitlines()
     assert out[0].startswith(f"{path}: ok")
     assert out[1:] == [f"{path}: object o1 can never be carried to p2 from p1: no passage wide enough (walls, "
-                       "obstacles and other regions grown by the radius + 0.5 m) for its smallest team (covering "
-                       "radius 1.90 m)"]
+                       "obstacles and other regions grown by the radius + control.margin 0.5 m) for its smallest "
+                       "team (covering radius 1.90 m)"]
 
 
 def _strong_team_door(width: float) -> dict:

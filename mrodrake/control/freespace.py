@@ -16,7 +16,8 @@ Numerical margin (our addition).  The guarantee assumes an exact map H.  The pan
 by ~1e-4 (median) to ~1e-2 (corners) on the outer boundary, while the barrier of φ acts only where
 1 − ‖χ‖² < τ ~ 1e-6: an entity cutting a door jamb can cross ∂F by a few decimetres (0.28 m seen in the
 property tests).  Walls, workspace obstacles and the other regions are therefore enlarged by r + margin
-(default 0.5 m).  The other entities are enlarged by r only: they are packed ``layout.spacing`` apart
+(``control.margin``, default 0.5 m; the error scales with the floor, so a small floor can use a
+smaller one).  The other entities are enlarged by r only: they are packed ``layout.spacing`` apart
 (0.1 m), so a margin would put the start inside their holes, and their small round holes are resolved
 finely by the map.
 """
@@ -38,8 +39,6 @@ from mrodrake.scenario import Scenario
 
 #: Default erosion of F beyond the entity radius (m): opens pinch points, keeps clearance strictly positive.
 DEFAULT_SAFETY = 1e-3
-#: Default extra clearance (m) to walls, workspace obstacles and other regions (module docstring).
-DEFAULT_MARGIN = 0.5
 _CHORD = 1.0 / math.cos(math.pi / (4 * DISK_QUAD_SEGS))
 
 
@@ -93,16 +92,16 @@ def entity_free_space(
     dst_region: int | str,
     others: Sequence[Disk] = (),
     safety: float = DEFAULT_SAFETY,
-    margin: float = DEFAULT_MARGIN,
+    margin: float | None = None,
     confine: Polygon | None = None,
 ) -> EntityFreeSpace:
     """F = (W_f \\ O) ⊖ r for an entity of ``radius`` moving from ``start`` (in ``src_region``) to
     ``goal`` (in ``dst_region``), the ``others`` being static; the component of F containing ``start``
     (of F ∩ ``confine`` if given: the corridor of a concurrent motion, :mod:`mrodrake.execution.schedule`).
 
-    Walls, workspace obstacles and the other regions are enlarged by r + ``margin`` (see the module
-    docstring), the other entities by r.  Raises UserError when the start is not in F or the goal is not
-    in the same component ("goal unreachable").
+    Walls, workspace obstacles and the other regions are enlarged by r + ``margin`` (default: the scenario's
+    ``control.margin``; see the module docstring), the other entities by r.  Raises UserError when the start
+    is not in F or the goal is not in the same component ("goal unreachable").
     """
     r = float(radius)
     if not (math.isfinite(r) and r > 0.0):
@@ -110,6 +109,7 @@ def entity_free_space(
     src, dst = region_index(scenario, src_region), region_index(scenario, dst_region)
     start = np.asarray(start, dtype=float).reshape(2)
     goal = np.asarray(goal, dtype=float).reshape(2)
+    margin = scenario.control.margin if margin is None else margin
     if not (math.isfinite(margin) and margin >= 0.0):
         raise UserError(f"margin: must be a finite number >= 0, got {margin!r}")
     boundary = polygon(scenario.workspace.boundary)

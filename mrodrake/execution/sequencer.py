@@ -13,7 +13,7 @@ Each primitive is a small state machine (:class:`Phase`) over an :class:`Active`
 end point comes from the plan-wide placement (:mod:`mrodrake.planning.placement`).  Motions use the paper's
 adaptive law on the point-world map of the entity's free space, and the identity-map local law for docking,
 backing off, room moves, the last part of every navigation or transport inside the *approach disk* of the
-target region and, from a start nearer than :data:`EXIT_CLEARANCE` to another entity, its first part (exit legs
+target region and, from a start nearer than the margin (``control.margin``) to another entity, its first part (exit legs
 inside the source region's approach disk) (:mod:`mrodrake.control.local`); where the map of the whole free space
 does not resolve the entity's position or its goal, the point-world law runs on the maps of receding windows
 around the entity (:mod:`mrodrake.control.windows`); the estimates carry over within one primitive (one episode).
@@ -34,7 +34,7 @@ import numpy as np
 import shapely
 
 from mrodrake.control.adaptive import AdaptiveGains
-from mrodrake.control.freespace import DEFAULT_MARGIN, Disk, entity_free_space
+from mrodrake.control.freespace import Disk, entity_free_space
 from mrodrake.control.local import PATH_CLEARANCE, clear_goal, disk_obstacles, exit_path, local_path, local_task
 from mrodrake.control.tasks import build_map, build_task, departure_point, inside_circle
 from mrodrake.control.windows import (
@@ -72,17 +72,10 @@ GOAL_TOL = 0.05
 #: Distance (m) to a waypoint of a local motion at which its next leg starts.
 LEG_TOL = 0.25 * PATH_CLEARANCE
 #: Width (m) of the approach ring around a region (less where walls, obstacles or other regions are nearer
-#: than this plus DEFAULT_MARGIN): inside it, a navigation or transport finishes with the local law.
+#: than this plus the margin): inside it, a navigation or transport finishes with the local law.
 APPROACH = 10.0
 #: Depth (m) of the entity's ball inside the approach disk at which the local law takes over.
 SETTLE_DEPTH = 0.05
-#: Clearance (m) to every other entity at which a navigation or transport starts the point-world law; from a
-#: start nearer to them it first leaves on exit legs of the local law.  Entities packed closer than their
-#: grown radii merge into one hole of the free space, and a start in a pocket of it maps next to that hole's
-#: point b_ℓ: its barrier, kept off the start (Prop. 1), then acts only within ~1 cm of the pocket's wall
-#: (case II seed 0, step 52: τ = 2.6e-10, 0.12 m gaps, u up to 2e4 N, integrator failure).  The same margin
-#: as to walls, obstacles and other regions (DEFAULT_MARGIN).
-EXIT_CLEARANCE = DEFAULT_MARGIN
 #: Point-world maps a sequencer keeps for reuse (:meth:`Sequencer._map`).
 MAP_CACHE = 4
 
@@ -229,6 +222,12 @@ class Sequencer:
                  *, rest_speed: float = REST_SPEED, dock_tol: float = DOCK_TOL, goal_tol: float = GOAL_TOL,
                  time_limit: tuple[float, float] = (1500.0, 10.0), execution: Execution = Execution.SEQUENTIAL):
         self.scenario, self.ts, self.words, self.placement = scenario, ts, words, placement
+        # clearance to walls, obstacles and other regions, and to every other entity at which a navigation or
+        # transport starts the point-world law (nearer: exit legs of the local law first).  Entities packed
+        # closer than their grown radii merge into one hole of the free space, and a start in a pocket of it
+        # maps next to that hole's point b_ℓ, where the barrier (kept off the start, Prop. 1) acts only within
+        # ~1 cm of the pocket's wall (case II seed 0, step 52: τ = 2.6e-10, 0.12 m gaps, integrator failure)
+        self.margin = float(scenario.control.margin)
         self.steps = [p.step for p in placement.steps]
         self.robots, self.objects = list(scenario.robot_names), list(scenario.object_names)
         self.entities = self.robots + self.objects
@@ -444,7 +443,7 @@ class Sequencer:
         held = [a.motion.corridor.body for a in ed.running if a.motion is not None and a.motion.corridor is not None]
         busy = shapely.union_all(held) if held else None
         if requests:
-            ed.grants.update(assign_corridors(requests, self._floor, busy, DEFAULT_MARGIN))
+            ed.grants.update(assign_corridors(requests, self._floor, busy, self.margin))
         asked = {rq.uid for rq in requests} | failed
         ed.running = [replace(a, tried=ed.corridors) if a.uid in asked and a.uid not in ed.grants else a
                       for a in ed.running]
@@ -534,7 +533,7 @@ class Sequencer:
 
     def _approach_widths(self) -> np.ndarray:
         """Width of the approach ring of every region: APPROACH, or the clearance of the region's disk to
-        walls, obstacles and other regions minus DEFAULT_MARGIN if smaller (never negative)."""
+        walls, obstacles and other regions minus the margin if smaller (never negative)."""
         ws = self.scenario.workspace
         free = workspace_free_space(polygon(ws.boundary), [polygon(o.polygon) for o in ws.obstacles])
         out = []
@@ -543,7 +542,7 @@ class Sequencer:
             for m, (cm, Rm) in enumerate(zip(self.centers, self.region_radii)):
                 if m != k:
                     clear = min(clear, math.hypot(*(c - cm)) - R - Rm)
-            out.append(max(0.0, min(APPROACH, clear - DEFAULT_MARGIN)))
+            out.append(max(0.0, min(APPROACH, clear - self.margin)))
         return np.array(out)
 
     def _local_world(self, X: np.ndarray, entity: int, radius: float, k: int, exclude=(), extra: float = 0.0):
@@ -584,16 +583,16 @@ class Sequencer:
         return self._exit(ed, X, m) or self._point_world(ed, X, m)
 
     def _exit(self, ed: _Edit, X: np.ndarray, m: Motion) -> Motion | None:
-        """Exit legs of the local law in the source region's approach disk to the nearest point EXIT_CLEARANCE
+        """Exit legs of the local law in the source region's approach disk to the nearest point the margin
         clear of every other entity, when the start is nearer than that to one (None: not needed, or no path;
         the point-world law then starts where the entity is)."""
         ring = self._ring(m, m.src)
         c, R, centers, radii = self._local_world(X, m.entity, m.radius, m.src, m.team, ring)
         x = X[m.entity, :2]
-        if not len(centers) or np.min(np.linalg.norm(centers - x, axis=1) - radii) >= EXIT_CLEARANCE:
+        if not len(centers) or np.min(np.linalg.norm(centers - x, axis=1) - radii) >= self.margin:
             return None
         try:
-            legs = exit_path(x, centers, radii, c, R, EXIT_CLEARANCE, toward=np.asarray(m.goal))
+            legs = exit_path(x, centers, radii, c, R, self.margin, toward=np.asarray(m.goal))
         except ValueError:
             return None
         m = replace(m, legs=tuple(map(tuple, legs)), leg=0, extra=ring, exiting=True)

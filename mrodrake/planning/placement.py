@@ -26,7 +26,7 @@ arrival learns to keep the object in the way off it.  A robot arriving, or backi
 a team stands keeps out of that team's covering disk if the team leaves before the robot acts again (in
 execution order), and parked spots are first sought where the region's later trips keep a way out (a spot beside
 a door can cut it off for a team).  Spots keep
-``radius + CONTROL_MARGIN`` to walls, obstacles and other regions (sampled boundary points are fixed disks), so
+``radius + control.margin`` to walls, obstacles and other regions (sampled boundary points are fixed disks), so
 that the point-world free space of a departure or an arrival contains them.  Every local motion
 (back-off, docking, room move) is checked for a straight-leg path inside its region
 (:func:`mrodrake.geometry.local_path`).  A geometry that cannot be realised raises
@@ -47,7 +47,7 @@ from shapely.geometry import Point
 from shapely.ops import unary_union
 
 from mrodrake.errors import UserError
-from mrodrake.geometry import CONTROL_MARGIN, grasp_layout, local_path, polygon
+from mrodrake.geometry import grasp_layout, local_path, polygon
 from mrodrake.packing import can_place, place
 from mrodrake.planning.steps import StepSpec, expand_steps
 from mrodrake.ts import Grasp, Navigate, Release, TransitionSystem, Transport
@@ -183,7 +183,7 @@ class _Placer:
         out = self._samples.get(k)
         if out is None:
             sc = self.ts.scenario
-            reach = self.R[k] + CONTROL_MARGIN + 2.0 * float(self.radii.max(initial=0.0)) + 2.0
+            reach = self.R[k] + self.ts.margin + 2.0 * float(self.radii.max(initial=0.0)) + 2.0
             near = Point(*self.centers[k]).buffer(reach)
             lines = [polygon(sc.workspace.boundary).exterior] + [polygon(o.polygon).exterior
                                                                   for o in sc.workspace.obstacles]
@@ -271,7 +271,7 @@ class _Placer:
         S = self.samples(k)
         fc = np.vstack([np.array(cs, dtype=float).reshape(-1, 2) - c, S - c]) if len(S) else \
             np.array(cs, dtype=float).reshape(-1, 2) - c
-        fr = list(rs) + [CONTROL_MARGIN] * len(S)
+        fr = list(rs) + [self.ts.margin] * len(S)
         sol = place(self.R[k], fc, fr, [float(r) for r in new], seed=self.seed + 7919 * attempt,
                     margin=self.spacing)
         return None if sol is None else c + sol
@@ -289,7 +289,7 @@ class _Placer:
         S = self.samples(k)
         cs_xy = np.array(cs, dtype=float).reshape(-1, 2)
         fc = np.vstack([cs_xy, S]) if len(S) else cs_xy
-        fr = np.concatenate([np.asarray(rs, dtype=float), np.full(len(S), CONTROL_MARGIN)])
+        fr = np.concatenate([np.asarray(rs, dtype=float), np.full(len(S), self.ts.margin)])
         top = R - r - 0.5 * sp - rim_extra - 1e-6
         if top < 0.0:
             return None
@@ -1079,7 +1079,7 @@ TEAM_RADIUS_SLACK = 0.05
 def unreachable_arrival(ts: TransitionSystem, placement: Placement) -> PlacementError | None:
     """The first navigation or transport of the placed run whose goal the free space of the moving entity
     does not connect with its start (the sequencer's test, paper Sec. III-A: walls, obstacles and the other
-    regions grown by radius + :data:`~mrodrake.geometry.CONTROL_MARGIN`, the other entities' bodies by the
+    regions grown by radius + ``control.margin``, the other entities' bodies by the
     radius), as a PlacementError naming the step; None when every arrival is reachable."""
     N = ts.N
     radii = np.array(list(ts.robot_radius) + list(ts.object_radius), dtype=float)

@@ -18,9 +18,9 @@ import shapely
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from mrodrake.control.freespace import DEFAULT_MARGIN
 from mrodrake.errors import NoPlanFound, UserError
 from mrodrake.execution.schedule import Execution, dependency_graph, task_order
+from mrodrake.geometry import CONTROL_MARGIN
 from mrodrake.logic.lasso import evaluate_lasso
 from mrodrake.planning.generate import generate_scenario_data
 from mrodrake.planning.plan import plan_scenario, task_words
@@ -80,10 +80,10 @@ def test_two_robots_on_separate_lanes_move_at_the_same_time_inside_their_corrido
     for rec in log.primitives:
         seg = tr[(tr.entity == rec.entity) & (tr.t >= rec.t_start) & (tr.t <= rec.t_end)][["x", "y"]].to_numpy()
         d = shapely.distance(rec.free.polygon, shapely.points(seg))
-        assert np.max(d) <= DEFAULT_MARGIN, (rec.entity, float(np.max(d)))
-    free = [rec.free.polygon.buffer(0.75 + DEFAULT_MARGIN) for rec in log.primitives]
+        assert np.max(d) <= CONTROL_MARGIN, (rec.entity, float(np.max(d)))
+    free = [rec.free.polygon.buffer(0.75 + CONTROL_MARGIN) for rec in log.primitives]
     assert not free[0].intersects(free[1])
-    assert _gap(log, "r1", "r2") > 2 * DEFAULT_MARGIN
+    assert _gap(log, "r1", "r2") > 2 * CONTROL_MARGIN
     seq = _mission(lanes("F (r1_p2 & r2_p4)"), "sequential")
     assert log.sim_seconds < seq.sim_seconds
 

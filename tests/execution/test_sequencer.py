@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from mrodrake.execution.sequencer import EXIT_CLEARANCE, Phase, Sequencer, Status, couplings_of
+from mrodrake.execution.sequencer import Phase, Sequencer, Status, couplings_of
 from mrodrake.planning.placement import OpKind, place_run
 from mrodrake.planning.plan import plan_scenario, task_words
 from mrodrake.planning.steps import expand_steps
@@ -128,9 +128,10 @@ def test_an_arrival_needs_the_whole_ball_inside_the_target_region(tiny):
 
 
 def test_point_world_motions_start_clear_of_other_entities(tiny):
-    """A navigation or transport that starts nearer than EXIT_CLEARANCE to another entity first leaves on exit
-    legs of the local law in its source region's approach disk (same episode), so every point-world law starts
-    EXIT_CLEARANCE clear of every other entity (the kinematic plants end each leg at its waypoint)."""
+    """A navigation or transport that starts nearer than the margin (control.margin) to another entity first
+    leaves on exit legs of the local law in its source region's approach disk (same episode), so every
+    point-world law starts the margin clear of every other entity (the kinematic plants end each leg at its
+    waypoint)."""
     sc, plan, words, placement = tiny
     seq = Sequencer(sc, plan.ts, words, placement, couplings_of(plan))
     st = seq.initial_state()
@@ -153,4 +154,4 @@ def test_point_world_motions_start_clear_of_other_entities(tiny):
         t += 0.5
     assert st.status is Status.DONE, st.message
     assert exits and exits <= set(starts)
-    assert min(starts.values()) >= EXIT_CLEARANCE - 1e-9
+    assert min(starts.values()) >= sc.control.margin - 1e-9
