@@ -33,6 +33,7 @@ import numpy as np
 import scipy.linalg
 import shapely
 from scipy.linalg import get_lapack_funcs
+from numba import njit, prange
 from scipy.spatial import cKDTree
 from shapely.geometry import MultiPolygon, Polygon
 from shapely.geometry.polygon import orient
@@ -43,7 +44,7 @@ from mrodrake.errors import UserError
 _SHARP_ANGLE = math.radians(30.0)  # vertices turning more than this are kept as panel ends
 _GENTLE_ANGLE = math.radians(0.5)  # vertices turning less than this carry no curvature cap
 _LOCAL_ARC_RATIO = 2.5  # boundary points closer along the boundary than this x straight are neighbours
-_CHUNK = 1 << 15  # kernel entries per block in batch evaluation and assembly
+_CHUNK = 1 << 15  # kernel entries per block in batch evaluation
 _TWO_PI = 2.0 * math.pi
 _TINY = 1e-300
 _CORNER_FRACTION = 1.0 / 40.0  # panels at convex corners of the outer boundary: at most this x max_panel
@@ -333,6 +334,35 @@ def _kernel_values(x, y, vx, vy, tx, ty, L):
     return W
 
 
+@njit(cache=True, nogil=True, parallel=True)
+def _assemble(mx, my, vx, vy, tx, ty, L, col, M, M32):
+    """M[i, col[l]] = W of link l at point i (the closed form of ``_kernel_values``) for every real link
+    (col[l] ≥ 0), written to the float64 ``M`` and its float32 copy ``M32``; rows in parallel (every entry
+    is computed on its own, so the result does not depend on the number of threads)."""
+    nv = len(vx)
+    for i in prange(len(mx)):
+        x, y = mx[i], my[i]
+        dxa = x - vx[0]
+        dya = y - vy[0]
+        lra = math.log(max(dxa * dxa + dya * dya, 1e-300))
+        anga = math.atan2(dya, dxa)
+        for k in range(nv - 1):
+            dxb = x - vx[k + 1]
+            dyb = y - vy[k + 1]
+            lrb = math.log(max(dxb * dxb + dyb * dyb, 1e-300))
+            angb = math.atan2(dyb, dxb)
+            c = col[k]
+            if c >= 0:
+                theta = angb - anga
+                theta -= 2.0 * math.pi * np.rint(theta * (0.5 / math.pi))
+                ua = dxa * tx[k] + dya * ty[k]
+                eta = dya * tx[k] - dxa * ty[k]
+                w = ua * (lra - lrb) + L[k] * (lrb - 2.0) + 2.0 * eta * theta
+                M[i, c] = w
+                M32[i, c] = w
+            dxa, dya, lra, anga = dxb, dyb, lrb, angb
+
+
 def _kernel(x, y, vx, vy, tx, ty, L, *, derivs: bool):
     """Closed forms for the panel chain at points (x, y) (shape (m,)).
 
@@ -597,16 +627,9 @@ class PointWorldMap:
         M, M32 = _workspace(size)  # M32: M's float32 copy for the LU, filled while cache-hot
         M[:, n:] = 0.0
         M[n:, :n] = 0.0
-        # real links are runs between the dummies: link l of run k is column l - k
-        dummies = np.flatnonzero(~real)
-        runs = list(zip(np.concatenate([[0], dummies + 1]), np.concatenate([dummies, [len(real)]])))
-        rows = max(1, (2 * _CHUNK) // n)
-        for i in range(0, n, rows):
-            j = min(i + rows, n)
-            W = _kernel(mid[i:j, 0], mid[i:j, 1], v[:, 0], v[:, 1], tx, ty, L_link, derivs=False)[0]
-            for k, (l0, l1) in enumerate(runs):
-                M[i:j, l0 - k : l1 - k] = W[:, l0:l1]
-            M32[i:j, :n] = M[i:j, :n]
+        col = np.where(real, np.cumsum(real) - 1, -1)  # the real links are the panels, in order
+        _assemble(np.ascontiguousarray(mid[:, 0]), np.ascontiguousarray(mid[:, 1]), np.ascontiguousarray(v[:, 0]),
+                  np.ascontiguousarray(v[:, 1]), tx, ty, L_link, col, M, M32)
         hole_of_panel = rid - 1
         on_hole = hole_of_panel >= 0
         M[np.flatnonzero(on_hole), n + hole_of_panel[on_hole]] = -1.0  # u = b_ℓ on hole ℓ
