@@ -25,15 +25,17 @@ from __future__ import annotations
 
 import itertools
 import math
+import os
 import threading
 import time
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 
 import numpy as np
 import scipy.linalg
 import shapely
+from numba import njit
 from scipy.linalg import get_lapack_funcs
-from numba import njit, prange
 from scipy.spatial import cKDTree
 from shapely.geometry import MultiPolygon, Polygon
 from shapely.geometry.polygon import orient
@@ -334,13 +336,30 @@ def _kernel_values(x, y, vx, vy, tx, ty, L):
     return W
 
 
-@njit(cache=True, nogil=True, parallel=True)
 def _assemble(mx, my, vx, vy, tx, ty, L, col, M, M32):
     """M[i, col[l]] = W of link l at point i (the closed form of ``_kernel_values``) for every real link
-    (col[l] ≥ 0), written to the float64 ``M`` and its float32 copy ``M32``; rows in parallel (every entry
-    is computed on its own, so the result does not depend on the number of threads)."""
+    (col[l] ≥ 0), written to the float64 ``M`` and its float32 copy ``M32``.  Blocks of rows run on threads of
+    their own (the compiled kernel releases the GIL; a pool per call, so a forked process can assemble too);
+    every entry is computed on its own, so the result does not depend on the number of threads."""
+    n = len(mx)
+    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+    workers = max(1, min(cores, n // 256))
+    if workers == 1:
+        _assemble_rows(0, n, mx, my, vx, vy, tx, ty, L, col, M, M32)
+        return
+    bounds = np.linspace(0, n, workers + 1).astype(np.int64)
+    with ThreadPoolExecutor(workers) as pool:
+        jobs = [pool.submit(_assemble_rows, int(i0), int(i1), mx, my, vx, vy, tx, ty, L, col, M, M32)
+                for i0, i1 in zip(bounds[:-1], bounds[1:])]
+        for job in jobs:
+            job.result()
+
+
+@njit(cache=True, nogil=True)
+def _assemble_rows(i0, i1, mx, my, vx, vy, tx, ty, L, col, M, M32):
+    """Rows i0 .. i1 − 1 of :func:`_assemble`."""
     nv = len(vx)
-    for i in prange(len(mx)):
+    for i in range(i0, i1):
         x, y = mx[i], my[i]
         dxa = x - vx[0]
         dya = y - vy[0]

@@ -151,6 +151,28 @@ def test_compiled_assembly_matches_the_closed_form(rooms):
     np.testing.assert_allclose(M32, W.astype(np.float32), rtol=2.0 ** -23, atol=2.0 ** -23 * scale)
 
 
+def _build_in_child(queue):
+    queue.put(PointWorldMap.build(box(0, 0, 10, 10).difference(box(4, 4, 6, 6))).n_panels)
+
+
+def test_maps_build_in_a_process_forked_after_a_build():
+    """The assembly's threads live for one call, so a process forked after a build (a user's multiprocessing
+    pool) builds maps too instead of waiting forever on threads it did not inherit."""
+    import multiprocessing
+
+    n = PointWorldMap.build(box(0, 0, 10, 10).difference(box(4, 4, 6, 6))).n_panels
+    ctx = multiprocessing.get_context("fork")
+    queue = ctx.Queue()
+    child = ctx.Process(target=_build_in_child, args=(queue,))
+    child.start()
+    child.join(timeout=600)  # a hang guard only: the build itself takes well under a second
+    hung = child.is_alive()
+    if hung:
+        child.kill()
+    assert not hung and child.exitcode == 0
+    assert queue.get(timeout=10) == n
+
+
 # ---------------------------------------------------------------------- the map
 
 
