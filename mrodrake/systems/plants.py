@@ -41,11 +41,18 @@ def friction(model: str, scale: float, frequency: float, x: np.ndarray, xdot: np
     ``paper``: scale · sin(frequency (x₁ + x₂)) · diag(exp(−|ẋ_k|) + 1) ẋ (paper Sec. IV);
     ``viscous``: scale · ẋ.  Both satisfy ‖f‖ ≤ α‖ẋ‖ (α = 2 scale resp. scale).
     """
+    (x0, x1), (v0, v1) = np.asarray(x, dtype=float).tolist(), np.asarray(xdot, dtype=float).tolist()
+    return np.array(friction_xy(model, scale, frequency, x0, x1, v0, v1))
+
+
+def friction_xy(model: str, scale: float, frequency: float, x0: float, x1: float, v0: float, v1: float
+                ) -> tuple[float, float]:
+    """:func:`friction` of one body on Python floats (the mission's derivative path)."""
     if model == "paper":
-        s = scale * math.sin(frequency * (x[0] + x[1]))
-        return s * (np.exp(-np.abs(xdot)) + 1.0) * xdot
+        s = scale * math.sin(frequency * (x0 + x1))
+        return s * (math.exp(-abs(v0)) + 1.0) * v0, s * (math.exp(-abs(v1)) + 1.0) * v1
     if model == "viscous":
-        return scale * np.asarray(xdot, dtype=float)
+        return scale * v0, scale * v1
     raise ValueError(f"unknown friction model {model!r} (expected one of {FRICTION_MODELS})")
 
 
@@ -333,38 +340,44 @@ class MissionPlants(LeafSystem):
         return EventStatus.Succeeded()
 
     # ------------------------------------------------------------------ dynamics
-    def _body_friction(self, context, body: int, x: np.ndarray, xdot: np.ndarray) -> tuple[float, np.ndarray]:
-        m, scale, freq = context.get_numeric_parameter(body).value()
-        return m, friction(self._models[body], scale, freq, x, xdot)
+    def _body_friction(self, context, body: int, x0: float, x1: float, v0: float, v1: float
+                       ) -> tuple[float, float, float]:
+        m, scale, freq = context.get_numeric_parameter(body).value().tolist()
+        return (m, *friction_xy(self._models[body], scale, freq, x0, x1, v0, v1))
 
-    def _acceleration(self, context, k: int, x: np.ndarray, v: np.ndarray, offsets) -> np.ndarray:
+    def _acceleration(self, context, k: int, x0: float, x1: float, v0: float, v1: float,
+                      offsets) -> tuple[float, float]:
+        """ẍ of plant k on Python floats (the hot path of a mission)."""
         n_r, n_e = len(self.robot_names), len(self.robot_names) + len(self.object_names)
         if k < n_r:  # robot: m ẍ + f = u
-            m, f = self._body_friction(context, k, x, v)
-            return (self._robot_u[k].Eval(context) - f) / m
+            m, f0, f1 = self._body_friction(context, k, x0, x1, v0, v1)
+            u0, u1 = self._robot_u[k].Eval(context).tolist()
+            return (u0 - f0) / m, (u1 - f1) / m
         if k < n_e:  # object without contact: m ẍ + f = 0
-            m, f = self._body_friction(context, k, x, v)
-            return (0.0 - f) / m
+            m, f0, f1 = self._body_friction(context, k, x0, x1, v0, v1)
+            return -f0 / m, -f1 / m
         q = k - n_e  # team: m_A ẍ + f_A = Σ u_i
         obj, team = self._team_bodies[q]
-        m_total, f_total = self._body_friction(context, obj, x, v)
-        u = np.zeros(2)
-        for b, (i, port) in enumerate(zip(team, self._team_u[q])):
-            m_k, f_k = self._body_friction(context, i, x + offsets[q][b], v)
+        m_total, f0, f1 = self._body_friction(context, obj, x0, x1, v0, v1)
+        u0 = u1 = 0.0
+        for (d0, d1), i, port in zip(offsets[q].tolist(), team, self._team_u[q]):
+            m_k, g0, g1 = self._body_friction(context, i, x0 + d0, x1 + d1, v0, v1)
             m_total += m_k
-            f_total = f_total + f_k
-            u += port.Eval(context)
-        return (u - f_total) / m_total
+            f0 += g0
+            f1 += g1
+            p0, p1 = port.Eval(context).tolist()
+            u0 += p0
+            u1 += p1
+        return (u0 - f0) / m_total, (u1 - f1) / m_total
 
     def DoCalcTimeDerivatives(self, context, derivatives):
         moving, _, _, offsets = self._syncs.Eval(context)
-        out = np.zeros(4 * len(self.names))
+        out = [0.0] * (4 * len(self.names))
         if moving:
             s = context.get_continuous_state_vector().value()
             for k in moving:
-                x, v = s[4 * k : 4 * k + 2], s[4 * k + 2 : 4 * k + 4]
-                out[4 * k : 4 * k + 2] = v
-                out[4 * k + 2 : 4 * k + 4] = self._acceleration(context, k, x, v, offsets)
+                x0, x1, v0, v1 = s[4 * k : 4 * k + 4].tolist()
+                out[4 * k : 4 * k + 4] = (v0, v1, *self._acceleration(context, k, x0, x1, v0, v1, offsets))
         derivatives.get_mutable_vector().SetFromVector(out)
 
     def _member_out(self, q: int, k: int):
