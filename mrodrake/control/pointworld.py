@@ -306,7 +306,7 @@ def _discretise(rings, *, max_panel, min_panel, fractions, grading, ring_caps):
 
 
 def _kernel_values(x, y, vx, vy, tx, ty, L):
-    """W of ``_kernel`` alone, with fewer temporaries (the assembly and value-only evaluation)."""
+    """W of ``_kernel`` alone, with fewer temporaries (value-only evaluation; the reference of :func:`_assemble`)."""
     dx = x[:, None] - vx
     dy = y[:, None] - vy
     r = dx * dx

@@ -136,7 +136,7 @@ def test_kernel_hessian_matches_finite_differences():
 def test_compiled_assembly_matches_the_closed_form(rooms):
     """The compiled matrix assembly writes the closed-form W of every panel at every collocation point (links
     between rings skipped), in float64 and float32; both evaluate the same formula in double precision, so
-    they agree to rounding of terms of size |u_a ln r_a| (≤ ~10² here): 1e-12 relative."""
+    they agree to rounding of terms of size |u_a ln r_a| (≤ ~10² here): within 1e-12 × max |W|."""
     _, pw = rooms
     a, b, rid = pw.panel_start, pw.panel_end, pw.panel_ring
     v, L, tx, ty, real = _chain(a, b, rid)
@@ -157,7 +157,7 @@ def _build_in_child(queue):
 
 def test_maps_build_in_a_process_forked_after_a_build():
     """The assembly's threads live for one call, so a process forked after a build (a user's multiprocessing
-    pool) builds maps too instead of waiting forever on threads it did not inherit."""
+    pool) builds maps too (a thread pool that outlived the call, e.g. GNU OpenMP's, aborts or hangs the child)."""
     import multiprocessing
 
     n = PointWorldMap.build(box(0, 0, 10, 10).difference(box(4, 4, 6, 6))).n_panels
