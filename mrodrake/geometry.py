@@ -287,13 +287,21 @@ def free_space_parts(boundary: Polygon, static: Sequence[Polygon], disks: Sequen
     """The components of the free space of an entity of ``radius`` (paper Sec. III-A): the boundary shrunk and
     the ``static`` obstacles (walls, workspace obstacles, excluded regions) enlarged by radius + ``margin``, the
     ``disks`` (other entities: centre, radius) by the radius, all arcs on the outside of their chords, then
-    eroded by ``safety`` (mitre joins).  Returns (components, enlarged obstacles: static first, then disks)."""
+    eroded by ``safety`` (mitre joins).  Returns (components, enlarged obstacles: static first, then disks).
+
+    An enlarged disk that lies inside an enlarged static obstacle (an entity parked in a region the entity
+    avoids) adds nothing to their union and is left out of it: the polygon then does not depend on where
+    in that region the entity stands."""
     grow, grow_static = radius * _CHORD, (radius + margin) * _CHORD
     shapes = list(static) + [disk(c, r) for c, r in disks]
     enlarged = [g.buffer(grow_static if i < len(static) else grow, quad_segs=DISK_QUAD_SEGS)
                 for i, g in enumerate(shapes)]
+    for g in enlarged[: len(static)]:
+        shapely.prepare(g)
+    union = enlarged[: len(static)] + [d for d in enlarged[len(static):]
+                                       if not any(g.contains_properly(d) for g in enlarged[: len(static)])]
     inner = boundary.buffer(-grow_static, quad_segs=DISK_QUAD_SEGS)
-    free = inner.difference(unary_union(enlarged)) if enlarged else inner
+    free = inner.difference(unary_union(union)) if union else inner
     if safety > 0.0:
         free = free.buffer(-float(safety), join_style="mitre")
     parts = list(free.geoms) if hasattr(free, "geoms") else ([free] if not free.is_empty else [])

@@ -27,6 +27,7 @@ from __future__ import annotations
 import math
 from collections import OrderedDict
 from collections.abc import Sequence
+from concurrent.futures import Future
 from dataclasses import dataclass, field, replace
 from enum import Enum
 
@@ -36,7 +37,8 @@ import shapely
 from mrodrake.control.adaptive import AdaptiveGains
 from mrodrake.control.freespace import Disk, entity_free_space
 from mrodrake.control.local import PATH_CLEARANCE, clear_goal, disk_obstacles, exit_path, local_path, local_task
-from mrodrake.control.tasks import build_map, build_task, departure_point, inside_circle
+from mrodrake.control.mapworker import map_worker
+from mrodrake.control.tasks import MAP_OPTIONS, build_map, build_task, departure_point, inside_circle
 from mrodrake.control.windows import (
     RESOLUTION,
     RESOLUTION_FLOOR,
@@ -78,6 +80,10 @@ APPROACH = 10.0
 SETTLE_DEPTH = 0.05
 #: Point-world maps a sequencer keeps for reuse (:meth:`Sequencer._map`).
 MAP_CACHE = 4
+#: Distance (m) to its planned spot within which a parked entity is a hole of a motion's map as its planned
+#: spot with the radius grown by this much (:meth:`Sequencer._map_disks`): navigations and transports end
+#: within GOAL_TOL of theirs, dockings and back-offs within DOCK_TOL.
+PARK_TOL = GOAL_TOL
 
 
 class Phase(Enum):
@@ -216,11 +222,15 @@ class Sequencer:
     """Executes ``placement`` (the placed steps of ``plan``) for ``scenario``; ``couplings`` are the
     (object, team) pairs of the plan's transports, each with a team plant and controller.  ``execution``:
     one primitive at a time (the paper), or every job of :func:`~mrodrake.execution.schedule.dependency_graph`
-    as soon as its predecessors are done, concurrent motions on their corridors."""
+    as soon as its predecessors are done, concurrent motions on their corridors.  ``prefetch`` (sequential
+    execution): the map of the next navigation or transport is built by the map worker while the current one
+    runs (:meth:`_prefetch`; the same maps either way, only sooner); ``map_sources`` counts where the maps
+    came from."""
 
     def __init__(self, scenario, ts, words, placement: Placement, couplings: Sequence[tuple[int, tuple[int, ...]]],
                  *, rest_speed: float = REST_SPEED, dock_tol: float = DOCK_TOL, goal_tol: float = GOAL_TOL,
-                 time_limit: tuple[float, float] = (1500.0, 10.0), execution: Execution = Execution.SEQUENTIAL):
+                 time_limit: tuple[float, float] = (1500.0, 10.0), execution: Execution = Execution.SEQUENTIAL,
+                 prefetch: bool = True):
         self.scenario, self.ts, self.words, self.placement = scenario, ts, words, placement
         # clearance to walls, obstacles and other regions, and to every other entity at which a navigation or
         # transport starts the point-world law (nearer: exit legs of the local law first).  Entities packed
@@ -240,6 +250,11 @@ class Sequencer:
         self.time_limit = time_limit
         self.approach = self._approach_widths()
         self._maps: OrderedDict = OrderedDict()
+        self.prefetch = bool(prefetch)
+        self.map_sources = {"built": 0, "worker": 0, "cached": 0}
+        self._ops = [op for sp in placement.steps for op in sp.ops]
+        self._op_start = np.cumsum([0] + [len(sp.ops) for sp in placement.steps]).tolist()
+        self._planned = self._plan_track()
         self.controllers = ([f"nav_{r}" for r in self.robots]
                             + [self.team_name(j, t) + "_ctrl" for j, t in self.couplings])
         self.plants = self.entities + [self.team_name(j, t) for j, t in self.couplings]
@@ -329,7 +344,8 @@ class Sequencer:
             if ed.active is None:
                 if ed.queue:
                     op, ed.queue = ed.queue[0], ed.queue[1:]
-                    ed.active = Active(op, self.steps[ed.step_idx], Phase.START, t)
+                    uid = self._op_start[ed.step_idx + 1] - len(ed.queue) - 1
+                    ed.active = Active(op, self.steps[ed.step_idx], Phase.START, t, uid=uid)
                 else:
                     if ed.step_idx >= 0:
                         self._end_step(ed, X)
@@ -531,6 +547,43 @@ class Sequencer:
         return [Disk(self.entities[e], (float(X[e, 0]), float(X[e, 1])), float(self.radii[e]))
                 for e in range(len(self.entities)) if e not in exclude]
 
+    def _plan_track(self) -> list[np.ndarray]:
+        """Planned positions (N + M, 2) of every entity before each primitive of the run in sequential order,
+        and after the last one: each primitive puts its entity at its planned end point, a transport or a
+        team's room move its members on their slots around it."""
+        pos = np.asarray(self.placement.initial, dtype=float).reshape(-1, 2).copy()
+        out = []
+        for op in self._ops:
+            out.append(pos.copy())
+            goal = np.asarray(op.goal, dtype=float)
+            pos[op.entity] = goal
+            if op.entity >= self.N and op.team:
+                pos[list(op.team)] = layout_slots(self.ts, op.entity - self.N, op.team, goal, op.rotation)
+        out.append(pos.copy())
+        return out
+
+    def _map_disks(self, X: np.ndarray, movers: set[int], planned: np.ndarray) -> list[Disk]:
+        """The entities other than ``movers`` as holes of a motion's map: one within PARK_TOL of its planned
+        spot (``planned``) as that spot with its radius grown by PARK_TOL, a disk that contains it and does
+        not depend on where within that it stopped (so the map can be built before it has); any other at its
+        actual disk."""
+        out = []
+        for e in range(len(self.entities)):
+            if e in movers:
+                continue
+            x, p, r = X[e, :2], planned[e], float(self.radii[e])
+            near = math.hypot(x[0] - p[0], x[1] - p[1]) <= PARK_TOL
+            c = (float(p[0]), float(p[1])) if near else (float(x[0]), float(x[1]))
+            out.append(Disk(self.entities[e], c, r + PARK_TOL if near else r))
+        return out
+
+    def _map_radius(self, entity: int, team: Sequence[int], radius: float) -> float:
+        """The covering radius a motion's map uses: a team's from its planned slots grown by dock_tol (its
+        members dock within that of their slots, so it covers the actual one), else ``radius``."""
+        if not team:
+            return radius
+        return max(radius, self.ts.covering_radius(entity - self.N, tuple(team)) + self.dock_tol)
+
     def _approach_widths(self) -> np.ndarray:
         """Width of the approach ring of every region: APPROACH, or the clearance of the region's disk to
         walls, obstacles and other regions minus the margin if smaller (never negative)."""
@@ -607,12 +660,12 @@ class Sequencer:
         entity, radius, team = m.entity, m.radius, m.team
         movers = {entity} | set(team)
         others = self._disks(X, movers)
-        start, goal, src, dst = X[entity, :2].copy(), np.asarray(m.goal, dtype=float), m.src, m.dst
+        start, src = X[entity, :2].copy(), m.src
         name = self.entities[entity]
         try:
-            confine = None if m.corridor is None else m.corridor.confine
-            free = entity_free_space(self.scenario, radius, start, goal, src, dst, others, confine=confine)
+            free = self._motion_free_space(ed, X, m, start, others)
             pw = self._map(free)
+            self._prefetch(ed, X)
             if not m.departed and not inside_circle(pw, start)[0]:
                 c, R, centers, radii = self._local_world(X, entity, radius, src, team)
                 point = departure_point(pw, free, centers, radii, c, R, self.dock_tol)
@@ -625,6 +678,62 @@ class Sequencer:
             raise _Failure(f"{m.kind.value} of {name}: {str(exc).splitlines()[0]}") from None
         m = replace(m, others=tuple(others), world=(free, pw), legs=None, leg=0, extra=0.0, exiting=False)
         return self._map_task(ed, X, m, RESOLUTION)
+
+    def _motion_free_space(self, ed: _Edit, X: np.ndarray, m: Motion, start: np.ndarray, others: list[Disk]):
+        """F of motion ``m`` from ``start`` for its map.  In sequential execution first with the parked
+        entities as :meth:`_map_disks` and the covering radius of :meth:`_map_radius`, plan data wherever the
+        entities stopped within their tolerances (so :meth:`_prefetch` can build the map ahead); if that F
+        does not hold the start and the goal, and always in concurrent execution (within the motion's
+        corridor), with the actual disks ``others`` and radius."""
+        goal = np.asarray(m.goal, dtype=float)
+        if self.execution is Execution.SEQUENTIAL:
+            try:
+                return entity_free_space(self.scenario, self._map_radius(m.entity, m.team, m.radius), start, goal,
+                                         m.src, m.dst, self._map_disks(X, {m.entity, *m.team},
+                                                                       self._planned[ed.active.uid]))
+            except UserError:
+                pass
+        confine = None if m.corridor is None else m.corridor.confine
+        return entity_free_space(self.scenario, m.radius, start, goal, m.src, m.dst, others, confine=confine)
+
+    def _prefetch(self, ed: _Edit, X: np.ndarray) -> None:
+        """Ask the map worker (:mod:`mrodrake.control.mapworker`) for the map of the run's next navigation or
+        transport, on the free space :meth:`_motion_free_space` will give it if every entity that moves
+        before it stops within PARK_TOL of its planned spot and docked members make a team radius no larger
+        than planned (those parked now stay where they are).  A wrong guess costs a map nobody takes."""
+        if not self.prefetch or self.execution is not Execution.SEQUENTIAL:
+            return
+        uid = ed.active.uid
+        nxt = next((u for u in range(uid + 1, len(self._ops))
+                    if self._ops[u].kind in (OpKind.NAVIGATE, OpKind.TRANSPORT)), None)
+        if nxt is None:
+            return
+        op, planned = self._ops[nxt], self._planned[nxt]
+        act = op.action
+        if op.kind is OpKind.NAVIGATE:
+            entity, team, radius = act.robot, (), float(self.radii[act.robot])
+        else:
+            entity, team = self.N + act.obj, tuple(act.team)
+            radius = self._map_radius(entity, team, 0.0)
+        at = X[:, :2].copy()
+        for u in range(uid, nxt):
+            moved = self._ops[u]
+            for e in (moved.entity, *(moved.team if moved.entity >= self.N else ())):
+                at[e] = planned[e]
+        goal = np.asarray(op.goal, dtype=float)
+        try:
+            free = entity_free_space(self.scenario, radius, goal, goal, act.src, act.dst,
+                                     self._map_disks(at, {entity, *team}, planned))
+        except UserError:
+            return
+        key = free.polygon.wkb
+        if key not in self._maps:
+            try:
+                self._maps[key] = map_worker().submit(free.polygon, MAP_OPTIONS)
+            except OSError:  # no worker process on this machine: every map is built in the mission
+                self.prefetch = False
+                return
+            self._trim_maps()
 
     def _map_task(self, ed: _Edit, X: np.ndarray, m: Motion, threshold: float) -> Motion:
         """The point-world law from where the entity is: on the map of the whole motion (``m.world``) if it
@@ -681,16 +790,28 @@ class Sequencer:
         return self._window(ed, x.copy(), m, replace(m.world[0], start=x.copy())) or self._map_task(ed, X, m, 0.0)
 
     def _map(self, free):
-        """The point-world map of ``free`` (memoised over the last :data:`MAP_CACHE` free spaces: a departure
-        restarts the law in the same free space, whose map then need not be solved again)."""
+        """The point-world map of ``free``: memoised over the last :data:`MAP_CACHE` free spaces (a departure
+        restarts the law in the same free space, whose map then need not be solved again), or taken from the
+        map worker if :meth:`_prefetch` asked for it (waiting for it; built here if the worker failed)."""
         key = free.polygon.wkb
         pw = self._maps.get(key)
+        source = "cached"
+        if isinstance(pw, Future):
+            try:
+                pw, source = pw.result(), "worker"
+            except RuntimeError:
+                pw = None
         if pw is None:
-            pw = build_map(free)
-            self._maps[key] = pw
-            while len(self._maps) > MAP_CACHE:
-                self._maps.popitem(last=False)
+            pw, source = build_map(free), "built"
+        self.map_sources[source] += 1
+        self._maps[key] = pw
+        self._maps.move_to_end(key)
+        self._trim_maps()
         return pw
+
+    def _trim_maps(self) -> None:
+        while len(self._maps) > MAP_CACHE:
+            self._maps.popitem(last=False)
 
     def _leg_task(self, X: np.ndarray, m: Motion):
         c, R, centers, radii = self._local_world(X, m.entity, m.radius, m.src if m.exiting else m.dst, m.team,

@@ -86,6 +86,21 @@ def test_touching_holes_merge(case1):
     assert any(sorted(h) == ["a", "b"] for h in fs2.hole_names)
 
 
+def test_an_entity_parked_in_an_avoided_region_leaves_F_as_it_is(case1):
+    """An entity inside p2 (avoided on a p1 -> p3 motion) lies inside p2's enlarged disk: F is the same
+    polygon, vertex for vertex, wherever in p2 it stands and without it; one on the open floor changes F."""
+    s = case1
+    start, goal = _centre(s, 0) + [-1.5, 0.0], _centre(s, 2) + [-1.5, 0.0]
+    base = entity_free_space(s, 0.75, start, goal, 0, 2, []).polygon.wkb
+    for offset in ([0.0, 0.0], [1.2, -0.9], [-2.0, 1.3]):  # the 0.2 m ball stays inside the 4 m region
+        fs = entity_free_space(s, 0.75, start, goal, 0, 2, [Disk("o1", tuple(_centre(s, 1) + offset), 0.2)])
+        assert fs.polygon.wkb == base
+        assert any("o1" in h for h in fs.hole_names)  # still named with the hole it lies in
+    midway = tuple(0.5 * (_centre(s, 0) + _centre(s, 2)))
+    outside = entity_free_space(s, 0.75, start, goal, 0, 2, [Disk("o1", midway, 0.2)]).polygon
+    assert outside.wkb != base and outside.area < shapely.from_wkb(base).area
+
+
 def test_goal_unreachable_when_a_door_is_blocked(case1):
     s = case1
     door = (103.5, -224.5)  # room A's 7 m door

@@ -155,3 +155,14 @@ def test_point_world_motions_start_clear_of_other_entities(tiny):
     assert st.status is Status.DONE, st.message
     assert exits and exits <= set(starts)
     assert min(starts.values()) >= sc.control.margin - 1e-9
+
+
+def test_the_planned_track_ends_every_step_at_its_planned_positions(tiny):
+    """The positions the sequencer expects before each primitive (its map's plan data) walk the placement:
+    after the last primitive of every step, every entity is at the step's planned position."""
+    sc, plan, words, placement = tiny
+    seq = Sequencer(sc, plan.ts, words, placement, couplings_of(plan), prefetch=False)
+    end = 0
+    for sp in placement.steps:
+        end += len(sp.ops)
+        assert np.allclose(seq._planned[end], np.asarray(sp.positions), atol=1e-9)
