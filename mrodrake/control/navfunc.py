@@ -14,6 +14,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+from numba import njit
 
 R_BAR_CAP = 0.1  # scenario default for r̄ (an upper bound; the map's b_ℓ may force a smaller one)
 TAU_FRACTION = 0.9  # τ = TAU_FRACTION × min(r̄², r̄_d): strictly inside the interval of Prop. 1
@@ -115,29 +116,47 @@ def phi_terms(chi: np.ndarray, goal: np.ndarray, bar: Barriers, k1: float,
 
     Only barriers with d_ℓ < τ_ℓ contribute (β' = β'' = 0 beyond).  Past a pole, i.e. where some active
     d_ℓ is not positive beyond its rounding bound (:data:`POLE_ULPS`), χ is outside the free set and φ = +∞
-    with NaN derivatives (never a finite, negative φ that would push the entity further out)."""
-    e = chi - goal
-    diff = chi - bar.centers  # (L + 1, 2)
-    d = bar.sign * (diff[:, 0] * diff[:, 0] + diff[:, 1] * diff[:, 1] - bar.rho2)
-    value = k1 * float(e @ e)
-    grad = 2.0 * k1 * e
-    hess = np.array([[2.0 * k1, 0.0], [0.0, 2.0 * k1]])
-    near = d < bar.taus
-    if not near.any():
-        return value, grad, hess
-    active = np.flatnonzero(near)
-    d_act = d[active]
-    scale = (math.sqrt(float(chi @ chi)) + bar.cnorm[active]) ** 2 + bar.rho2[active]
-    if np.any(d_act <= POLE_ULPS * _EPS * scale):
-        return math.inf, np.full(2, np.nan), np.full((2, 2), np.nan)
-    sign = bar.sign[active]
-    grad_d = 2.0 * sign[:, None] * diff[active]
-    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-        b, db, ddb = beta(d_act, bar.taus[active])
-    value += k2 * float(np.sum(b - 1.0))
-    grad = grad + k2 * (db @ grad_d)
-    hess = hess + k2 * (float(db @ (2.0 * sign)) * np.eye(2) + (grad_d.T * ddb) @ grad_d)
-    return value, grad, hess
+    with NaN derivatives (never a finite, negative φ that would push the entity further out).  Computed by
+    the compiled :func:`_phi_point` (the control law's hot path: one point, tens of barriers)."""
+    c0, c1 = np.asarray(chi, dtype=float).reshape(2).tolist()
+    g0, g1 = np.asarray(goal, dtype=float).reshape(2).tolist()
+    value, gx, gy, hxx, hxy, hyy = _phi_point(c0, c1, g0, g1, bar.centers, bar.rho2, bar.sign, bar.taus,
+                                               bar.cnorm, float(k1), float(k2))
+    return value, np.array([gx, gy]), np.array([[hxx, hxy], [hxy, hyy]])
+
+
+@njit(cache=True, nogil=True)
+def _phi_point(c0, c1, g0, g1, centers, rho2, sign, taus, cnorm, k1, k2):
+    """(φ, ∂φ/∂χ_0, ∂φ/∂χ_1, ∂²φ/∂χ_0², ∂²φ/∂χ_0∂χ_1, ∂²φ/∂χ_1²) of :func:`phi_terms` at χ = (c0, c1), with
+    β of :func:`beta` per active barrier (grad d_ℓ = 2 s_ℓ (χ − c_ℓ), ∇²d_ℓ = 2 s_ℓ I)."""
+    e0, e1 = c0 - g0, c1 - g1
+    value = k1 * (e0 * e0 + e1 * e1)
+    gx, gy = 2.0 * k1 * e0, 2.0 * k1 * e1
+    hxx, hxy, hyy = 2.0 * k1, 0.0, 2.0 * k1
+    norm = math.sqrt(c0 * c0 + c1 * c1)
+    for k in range(len(taus)):
+        dx, dy = c0 - centers[k, 0], c1 - centers[k, 1]
+        d = sign[k] * (dx * dx + dy * dy - rho2[k])
+        tau = taus[k]
+        if not d < tau:
+            continue
+        scale = (norm + cnorm[k]) ** 2 + rho2[k]
+        if d <= POLE_ULPS * _EPS * scale:
+            return math.inf, math.nan, math.nan, math.nan, math.nan, math.nan
+        s = min(d / tau, 1.0)
+        P = min(s * s * s * (10.0 + s * (-15.0 + 6.0 * s)), 1.0)  # P ≤ 1 on [0, 1]; guard rounding
+        dP = 30.0 * s * s * (s - 1.0) ** 2
+        ddP = 60.0 * s * (2.0 * s - 1.0) * (s - 1.0)
+        db = -dP / (P * P) / tau
+        ddb = (2.0 * dP * dP / P - ddP) / (P * P) / (tau * tau)
+        ax, ay = 2.0 * sign[k] * dx, 2.0 * sign[k] * dy
+        value += k2 * (1.0 / P - 1.0)
+        gx += k2 * db * ax
+        gy += k2 * db * ay
+        hxx += k2 * (2.0 * sign[k] * db + ddb * ax * ax)
+        hxy += k2 * ddb * ax * ay
+        hyy += k2 * (2.0 * sign[k] * db + ddb * ay * ay)
+    return value, gx, gy, hxx, hxy, hyy
 
 
 def outside_free_set(phi: float) -> bool:

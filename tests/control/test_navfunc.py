@@ -135,7 +135,7 @@ def test_proposition_1_at_most_one_barrier_active(world):
 # ---------------------------------------------------------------------- φ
 
 
-@pytest.fixture
+@pytest.fixture(scope="module")
 def nf():
     b = np.array([[0.4, 0.1], [-0.3, 0.5], [0.0, -0.6]])
     return NavigationFunction.for_goal(np.array([-0.5, -0.2]), b, k1=1.5, k2=0.7)
@@ -168,6 +168,38 @@ def test_phi_derivatives_match_finite_differences(nf):
         np.testing.assert_allclose(g, gfd, rtol=1e-5, atol=1e-7 * max(1, np.abs(g).max()))
         np.testing.assert_allclose(G, Gfd, rtol=1e-5, atol=1e-6 * max(1, np.abs(G).max()))
         np.testing.assert_allclose(G, G.T)
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.floats(0.0, 2 * np.pi), st.floats(0.02, 1.5), st.integers(0, 3))
+def test_phi_equals_the_sum_of_its_beta_terms(nf, angle, depth, which):
+    """φ, ∇φ, ∇²φ at points inside a barrier's region of influence (depth < 1 of τ) or outside (> 1) equal
+    the vectorised closed form k1‖χ − χ_d‖² + k2 Σ (β(d_ℓ) − 1) with ∇d_ℓ = ±2(χ − c_ℓ), to rounding
+    (a few ulps of the largest term)."""
+    if which == 0:  # the rim barrier: d_0 = 1 − ‖χ‖² = depth · τ
+        chi = np.sqrt(1.0 - depth * nf.tau) * np.array([np.cos(angle), np.sin(angle)])
+    else:
+        chi = nf.obstacles[which - 1] + np.sqrt(depth * nf.tau) * np.array([np.cos(angle), np.sin(angle)])
+    centers = np.vstack([np.zeros((1, 2)), nf.obstacles])
+    sign = np.array([-1.0] + [1.0] * len(nf.obstacles))
+    rho2 = np.array([1.0] + [0.0] * len(nf.obstacles))
+    d = sign * (np.sum((chi - centers) ** 2, axis=1) - rho2)
+    b, db, ddb = beta(np.maximum(d, 1e-300), nf.tau)
+    grad_d = 2.0 * sign[:, None] * (chi - centers)
+    value = nf.k1 * np.sum((chi - nf.goal) ** 2) + nf.k2 * np.sum(b - 1.0)
+    grad = 2 * nf.k1 * (chi - nf.goal) + nf.k2 * db @ grad_d
+    hess = 2 * nf.k1 * np.eye(2) + nf.k2 * (np.sum(db * 2 * sign) * np.eye(2) + (grad_d.T * ddb) @ grad_d)
+    v, g, G = nf.evaluate(chi)
+    scale = max(1.0, abs(value))
+    assert abs(v - value) <= 1e-12 * scale
+    np.testing.assert_allclose(g, grad, rtol=1e-11, atol=1e-12 * max(1.0, np.abs(grad).max()))
+    np.testing.assert_allclose(G, hess, rtol=1e-11, atol=1e-12 * max(1.0, np.abs(hess).max()))
+
+
+def test_phi_past_a_pole_is_infinite_with_nan_derivatives(nf):
+    for chi in (nf.obstacles[0], np.array([0.0, 1.0]), np.array([1.2, 0.0])):  # on a b_ℓ, on and past the rim
+        v, g, G = nf.evaluate(chi)
+        assert v == np.inf and np.all(np.isnan(g)) and np.all(np.isnan(G))
 
 
 def test_phi_without_obstacles():
