@@ -195,18 +195,23 @@ def _mentioned(nba: NBA, q: int) -> int:
 
 
 class GuardTable:
-    """NBA successors of letters, for states whose guards have many cubes: the cubes as packed bit arrays
-    over the propositions they mention, evaluated at once with numpy (same answers as
-    :meth:`~mrodrake.logic.nba.NBA.successors`, which loops over the cubes one Python integer at a time)."""
+    """NBA successors of letters, for states whose guards have many cubes: the cubes are bits of Python
+    integers, and per group of up to eight of the propositions they mention a table (filled on first use)
+    maps the group's bits of a letter to the cubes those bits falsify, so a letter costs one lookup per group
+    (same answers as :meth:`~mrodrake.logic.nba.NBA.successors`, which loops over the cubes)."""
 
-    #: States with more cubes than this use the packed table.
-    min_cubes = 64
+    #: States with more cubes than this use the table.
+    min_cubes = 16
+    #: Propositions per group.
+    group_bits = 8
 
     def __init__(self, nba: NBA):
         self.nba = nba
         self._tables: dict[int, tuple | None] = {}
 
     def _table(self, q: int):
+        """(groups, all cubes, (destination, its cubes)...) of state q, or None for few cubes.  A group is
+        (bits of the letter it reads, (bit, cubes needing it, cubes forbidding it)..., memo)."""
         if q in self._tables:
             return self._tables[q]
         flat = [(p, n, d) for g, d in self.nba.edges[q] for p, n in g]
@@ -215,49 +220,45 @@ class GuardTable:
             used = 0
             for p, n, _ in flat:
                 used |= p | n
-            if used.bit_length() < 64 and self.nba.num_states < 64:  # cubes and letters as int64 words
-                table = (used, np.array([p for p, _, _ in flat], dtype=np.uint64),
-                         np.array([n for _, n, _ in flat], dtype=np.uint64),
-                         np.array([1 << d for _, _, d in flat], dtype=np.uint64))
-                self._tables[q] = table
-                return table
-            bits = np.array([b for b in range(used.bit_length()) if used >> b & 1], dtype=np.int64)
-            nbytes = (used.bit_length() + 7) // 8
-            words = (len(bits) + 63) // 64
-            P = np.stack([self._pack(p & used, nbytes, bits, words) for p, _, _ in flat])
-            N = np.stack([self._pack(n & used, nbytes, bits, words) for _, n, _ in flat])
-            table = (used, nbytes, bits, words, P, N, np.array([d for _, _, d in flat], dtype=np.int64))
+            bits = [b for b in range(used.bit_length()) if used >> b & 1]
+            need = dict.fromkeys(bits, 0)
+            forbid = dict.fromkeys(bits, 0)
+            to: dict[int, int] = {}
+            for c, (p, n, d) in enumerate(flat):
+                for b in bits:
+                    if p >> b & 1:
+                        need[b] |= 1 << c
+                    if n >> b & 1:
+                        forbid[b] |= 1 << c
+                to[d] = to.get(d, 0) | 1 << c
+            k = self.group_bits
+            groups = tuple((sum(1 << b for b in bits[i:i + k]), tuple((b, need[b], forbid[b]) for b in bits[i:i + k]),
+                            {}) for i in range(0, len(bits), k))
+            table = (groups, (1 << len(flat)) - 1, tuple(to.items()))
         self._tables[q] = table
         return table
-
-    @staticmethod
-    def _pack(x: int, nbytes: int, bits: np.ndarray, words: int) -> np.ndarray:
-        """The bits ``bits`` of x, packed into ``words`` 64-bit words."""
-        raw = np.unpackbits(np.frombuffer(x.to_bytes(nbytes, "little"), dtype=np.uint8), bitorder="little")
-        out = np.zeros(8 * words, dtype=np.uint8)
-        packed = np.packbits(raw[bits], bitorder="little")
-        out[:len(packed)] = packed
-        return out.view("<u8")
 
     def successors_mask(self, q: int, letter: int) -> int:
         """Bit mask of δ(q, letter)."""
         table = self._table(q)
         if table is None:
             return sum(1 << d for d in self.nba.successors(q, letter))
-        if len(table) == 4:
-            used, P, N, dbits = table
-            L = np.uint64(letter & used)
-            ok = ((P & ~L) == 0) & ((N & L) == 0)
-            return int(np.bitwise_or.reduce(dbits[ok])) if ok.any() else 0
-        used, nbytes, bits, words, P, N, dst = table
-        L = self._pack(letter & used, nbytes, bits, words)
-        if words == 1:
-            ok = ((P[:, 0] & ~L[0]) == 0) & ((N[:, 0] & L[0]) == 0)
-        else:
-            ok = ~((P & ~L).any(axis=1) | (N & L).any(axis=1))
+        groups, alive, to = table
+        for gmask, gbits, memo in groups:
+            v = letter & gmask
+            f = memo.get(v)
+            if f is None:
+                f = 0
+                for b, nd, fb in gbits:
+                    f |= fb if v >> b & 1 else nd
+                memo[v] = f
+            alive &= ~f
+            if not alive:
+                return 0
         out = 0
-        for d in np.unique(dst[ok]):
-            out |= 1 << int(d)
+        for d, cubes in to:
+            if alive & cubes:
+                out |= 1 << d
         return out
 
 
@@ -270,6 +271,8 @@ class ExecutedWords:
     max_orders = 24
     #: Order prefixes explored per query (4 visible actions have 65).
     max_nodes = 256
+    #: NBAs with at most this many states search the orders of a step for all start states at once.
+    max_joint = 16
 
     def __init__(self, ts: TransitionSystem, nba: NBA, relevant: int):
         if tuple(nba.ap) != tuple(ts.propositions):
@@ -287,16 +290,26 @@ class ExecutedWords:
         self._lattice: dict[tuple, tuple[frozenset, int]] = {}
         self._cross_ids: dict[tuple, int] = {}
         self._lattices: list[list[tuple[int, int, int, tuple[int, ...]]]] = []
-        self._step: dict[tuple, list[dict[int, tuple[int, ...]]]] = {}
-        self._matrix: dict[tuple, np.ndarray] = {}
+        self._chains: list[tuple[tuple[int, int], ...] | None] = []  # lattices with one interleaving: letters
+        self._step_ids: dict[tuple[int, tuple], int] = {}  # (mask, signature) -> step id
+        self._step_keys: list[tuple[int, tuple]] = []  # step id -> (mask, signature)
+        self._step_orders: list[list[dict[int, tuple[int, ...]] | None]] = []  # step id -> per q: q' -> order
+        self._row_at = np.full(64 * self.Q, -1, dtype=np.int64)  # sid·Q + q -> row of _row_store (-1: not yet)
+        self._row_store = np.zeros((64, self.Q), dtype=bool)
+        self._num_rows = 0
+        self._full: dict[int, np.ndarray] = {}
+        self._pair_steps: dict[tuple[State, State], int] = {}
         self._label_matrix: dict[int, np.ndarray] = {}
         self._some: dict[tuple, tuple[np.ndarray, np.ndarray]] = {}
         self._cross: dict[Action, tuple[Crossing, ...]] = {}
         self._keys: dict[tuple[State, State], tuple[int, tuple, tuple[Action, ...]]] = {}
         self._sigs: dict[tuple[State, State], tuple[int, tuple]] = {}
         self._move_cross: dict[tuple, tuple[Crossing, ...]] = {}
-        self._rows: dict[tuple, np.ndarray] = {}
         self._acc = sum(1 << f for f in nba.accepting)
+        self._col = sum(1 << (self.Q * q) for q in range(self.Q))  # bit 0 of every row of a relation
+        self._identity = sum(1 << (self.Q * q + q) for q in range(self.Q))
+        self._columns: dict[int, tuple[tuple[int, int], ...]] = {}
+        self._joint: dict[tuple, tuple[frozenset, int]] = {}
 
     # ------------------------------------------------------------------------------------ NBA on subsets
     def delta(self, S: int, letter: int) -> int:
@@ -385,6 +398,8 @@ class ExecutedWords:
                 nodes.append((D, ~clear, put, succ))
             cid = self._cross_ids[cross] = len(self._lattices)
             self._lattices.append(nodes)
+            chain = all(len(succ) <= 1 for *_, succ in nodes)
+            self._chains.append(tuple((keep, put) for _, keep, put, _ in nodes) if chain else None)
         return cid
 
     def concurrent_reach(self, q: int, s: State, groups: Sequence[Sequence[Action]]) -> frozenset:
@@ -411,9 +426,24 @@ class ExecutedWords:
         if hit is not None:
             return hit
         delta, known = self.delta, self._delta
+        chain = self._chains[cid]
+        if chain is not None:  # one interleaving: each member reads the same letters
+            letters = [mask & keep | put for keep, put in chain]
+            last = letters.pop()
+            images = set()
+            for S in F:
+                for letter in letters:
+                    x = known.get((S, letter))
+                    S = delta(S, letter) if x is None else x
+                images.add(S)
+            out = (frozenset(images), last)
+            self._lattice[key] = out
+            return out
         fam: dict[int, set] = {0: F}
         for D, keep, put, succ in self._lattices[cid]:
             letter = mask & keep | put
+            if not succ:  # the full downset, last in the lattice: nothing read there
+                break
             images = set()
             for S in fam[D]:
                 x = known.get((S, letter))
@@ -439,6 +469,9 @@ class ExecutedWords:
         after, known, ids = self._after, self._lattice, [self._cross_id(c) for c in sig]
         if math.factorial(n) <= self.max_orders and _prefixes(n) <= self.max_nodes:
             # the budget cannot run out: depth first over the orders, lexicographic
+            chains = [self._chains[c] for c in ids]
+            if None not in chains:
+                return self._search_chains(q, mask, chains)
             stack = [(frozenset([1 << q]), mask, (1 << n) - 1, ())]
             while stack:
                 F, m, left, prefix = stack.pop()
@@ -472,21 +505,178 @@ class ExecutedWords:
         rec(frozenset([1 << q]), mask, (1 << n) - 1, ())
         return out
 
-    def _successors_key(self, q: int, mask: int, sig: tuple) -> dict[int, tuple[int, ...]]:
+    def _step_id(self, mask: int, sig: tuple) -> int:
+        """A small integer naming the step key (mask, signature), with its tables of orders and rows."""
         key = (mask, sig)
-        rows = self._step.get(key)
-        if rows is None:
-            rows = [None] * self.Q
-            self._step[key] = rows
+        sid = self._step_ids.get(key)
+        if sid is None:
+            sid = self._step_ids[key] = len(self._step_keys)
+            self._step_keys.append(key)
+            self._step_orders.append([None] * self.Q)
+            if (sid + 1) * self.Q > len(self._row_at):
+                self._row_at = np.concatenate([self._row_at, np.full_like(self._row_at, -1)])
+        return sid
+
+    def step_id(self, s: State, t: State) -> int:
+        """A small integer naming the step s → t for :meth:`step_rows` (s → t assumed a TS transition; steps
+        with the same projected source label and crossing signature share it; cached on the pair)."""
+        sid = self._pair_steps.get((s, t))
+        if sid is None:
+            sid = self._pair_steps[(s, t)] = self._step_id(*self.signature(s, t))
+        return sid
+
+    def _orders(self, q: int, sid: int) -> dict[int, tuple[int, ...]]:
+        """q' -> order of the visible actions for the step ``sid`` from q (cached)."""
+        rows = self._step_orders[sid]
         r = rows[q]
         if r is None:
+            mask, sig = self._step_keys[sid]
             if not sig:
                 S = self.delta(1 << q, mask)
                 r = {d: () for d in range(self.Q) if S >> d & 1}
+            elif self.Q <= self.max_joint and self._unbudgeted(len(sig)):
+                rows[:] = self._search_all(mask, sig)
+                return rows[q]
             else:
                 r = self._search(q, mask, sig)
             rows[q] = r
         return r
+
+    def _unbudgeted(self, n: int) -> bool:
+        """Can the search over the orders of n visible actions try them all (no budget can run out)?"""
+        return math.factorial(n) <= self.max_orders and _prefixes(n) <= self.max_nodes
+
+    # relations: a Q × Q boolean matrix as one integer, row q (the NBA states reached from q) in bits Q·q..Q·q+Q−1
+    def _letter_columns(self, letter: int) -> tuple[tuple[int, int], ...]:
+        """(j, δ(j, letter) as a mask) for the NBA states j with successors (cached)."""
+        cols = self._columns.get(letter)
+        if cols is None:
+            cols = []
+            for j in range(self.Q):
+                m = self.delta(1 << j, letter)
+                if m:
+                    cols.append((j, m))
+            cols = self._columns[letter] = tuple(cols)
+        return cols
+
+    def _read(self, R: int, letter: int) -> int:
+        """The relation R followed by reading ``letter``: column j of R spread onto the row δ(j, letter)."""
+        out, col = 0, self._col
+        for j, m in self._letter_columns(letter):
+            c = R >> j & col
+            if c:
+                out |= c * m
+        return out
+
+    def _after_all(self, F: frozenset, mask: int, cid: int) -> tuple[frozenset, int]:
+        """:meth:`_after` for all start states at once: F is a family of relations (one per interleaving so
+        far).  A start state that some interleaving takes to the empty set is dropped from every member."""
+        key = (F, mask, cid)
+        hit = self._joint.get(key)
+        if hit is not None:
+            return hit
+        read = self._read
+        chain = self._chains[cid]
+        if chain is not None:
+            letters = [mask & keep | put for keep, put in chain]
+            last = letters.pop()
+            images = set()
+            for R in F:
+                for letter in letters:
+                    R = read(R, letter)
+                images.add(R)
+        else:
+            fam: dict[int, set] = {0: set(F)}
+            for D, keep, put, succ in self._lattices[cid]:
+                last = mask & keep | put
+                if not succ:
+                    break
+                images = {read(R, last) for R in fam[D]}
+                for D2 in succ:
+                    got = fam.get(D2)
+                    if got is None:
+                        fam[D2] = set(images)
+                    else:
+                        got.update(images)
+            images = fam[D]
+        if len(images) > 1:
+            col, Q = self._col, self.Q
+            alive = -1
+            for R in images:
+                nz = 0
+                for j in range(Q):
+                    nz |= R >> j & col
+                alive &= nz
+            keep_rows = alive * ((1 << Q) - 1)
+            images = {R & keep_rows for R in images}
+        out = (frozenset(images), last)
+        self._joint[key] = out
+        return out
+
+    def _search_all(self, mask: int, sig: tuple) -> list[dict[int, tuple[int, ...]]]:
+        """:meth:`_search` for every start state q at once (unbudgeted searches): the same orders are tried in
+        the same sequence on relations instead of subsets, so every row is the one :meth:`_search` gives."""
+        Q, n = self.Q, len(sig)
+        out: list[dict[int, tuple[int, ...]]] = [{} for _ in range(Q)]
+        ids = [self._cross_id(c) for c in sig]
+        after, known = self._after_all, self._joint
+        covered = 0
+        stack = [(frozenset([self._identity]), mask, (1 << n) - 1, ())]
+        while stack:
+            F, m, left, prefix = stack.pop()
+            if left == 0:
+                common = -1
+                for R in F:
+                    common &= R
+                new = common & ~covered
+                covered |= new
+                while new:
+                    low = new & -new
+                    q, d = divmod(low.bit_length() - 1, Q)
+                    out[q][d] = prefix
+                    new ^= low
+                continue
+            for i in range(n - 1, -1, -1):
+                if left >> i & 1:
+                    hit = known.get((F, m, ids[i]))
+                    F2, m2 = after(F, m, ids[i]) if hit is None else hit
+                    if 0 not in F2:
+                        stack.append((F2, m2, left & ~(1 << i), prefix + (i,)))
+        return out
+
+    def _search_chains(self, q: int, mask: int, chains: list[tuple[tuple[int, int], ...]]) -> dict[int, tuple]:
+        """:meth:`_search` when every action's crossings have one interleaving: each order reads one word, so
+        the family of subsets is a single subset throughout."""
+        out: dict[int, tuple[int, ...]] = {}
+        n = len(chains)
+        delta, known = self.delta, self._delta
+        stack = [(1 << q, mask, (1 << n) - 1, ())]
+        while stack:
+            S, m, left, prefix = stack.pop()
+            if left == 0:
+                d = 0
+                while S:
+                    if S & 1:
+                        out.setdefault(d, prefix)
+                    S >>= 1
+                    d += 1
+                continue
+            for i in range(n - 1, -1, -1):
+                if left >> i & 1:
+                    chain = chains[i]
+                    S2 = S
+                    for k in range(len(chain) - 1):
+                        keep, put = chain[k]
+                        letter = m & keep | put
+                        x = known.get((S2, letter))
+                        S2 = delta(S2, letter) if x is None else x
+                    if S2:
+                        keep, put = chain[-1]
+                        stack.append((S2, m & keep | put, left & ~(1 << i), prefix + (i,)))
+        return out
+
+    def _successors_key(self, q: int, mask: int, sig: tuple) -> dict[int, tuple[int, ...]]:
+        return self._orders(q, self._step_id(mask, sig))
 
     def successors(self, q: int, s: State, t: State) -> dict[int, tuple[Action, ...]]:
         """NBA states q' of product edges (s, q) → (s', q') (s → t assumed a TS transition), each with an
@@ -498,36 +688,41 @@ class ExecutedWords:
 
     def matrix(self, s: State, t: State) -> np.ndarray:
         """``M[q, q']``: is (s, q) → (t, q') a product edge (s → t assumed a TS transition)?"""
-        mask, sig = self.signature(s, t)
-        return self.matrix_for(mask, sig)
+        return self._full_matrix(self.step_id(s, t))
 
     def rows(self, s: State, t: State, qs) -> np.ndarray:
         """``M[qs]`` of :meth:`matrix`, computing only the rows asked for."""
-        mask, sig = self.signature(s, t)
-        if not sig:
-            return self.matrix_for(mask, sig)[qs]
-        return np.array([self._row(int(q), mask, sig) for q in qs], dtype=bool).reshape(len(qs), self.Q)
+        qs = np.asarray(qs, dtype=np.int64)
+        return self.step_rows(np.full(len(qs), self.step_id(s, t), dtype=np.int64), qs)
 
-    def _row(self, q: int, mask: int, sig: tuple) -> np.ndarray:
-        """Row q of :meth:`matrix_for` (cached, read-only)."""
-        key = (q, mask, sig)
-        row = self._rows.get(key)
-        if row is None:
-            row = np.zeros(self.Q, dtype=bool)
-            row[list(self._successors_key(q, mask, sig))] = True
-            row.flags.writeable = False
-            self._rows[key] = row
-        return row
+    def step_rows(self, sids: np.ndarray, qs: np.ndarray) -> np.ndarray:
+        """Row ``qs[r]`` of the matrix of step ``sids[r]`` (:meth:`step_id`) for every r, computing only those."""
+        flat = sids * self.Q + qs
+        at = self._row_at[flat]
+        if (at < 0).any():
+            for f in flat[at < 0].tolist():
+                if self._row_at[f] < 0:
+                    self._add_row(f)
+            at = self._row_at[flat]
+        return self._row_store[at]
+
+    def _add_row(self, f: int) -> None:
+        k = self._num_rows
+        if k == len(self._row_store):
+            self._row_store = np.concatenate([self._row_store, np.zeros_like(self._row_store)])
+        sid, q = divmod(f, self.Q)
+        self._row_store[k, list(self._orders(q, sid))] = True
+        self._row_at[f] = k
+        self._num_rows = k + 1
+
+    def _full_matrix(self, sid: int) -> np.ndarray:
+        M = self._full.get(sid)
+        if M is None:
+            M = self._full[sid] = self.step_rows(np.full(self.Q, sid, dtype=np.int64), np.arange(self.Q))
+        return M
 
     def matrix_for(self, mask: int, sig: tuple) -> np.ndarray:
-        key = (mask, sig)
-        M = self._matrix.get(key)
-        if M is None:
-            M = np.zeros((self.Q, self.Q), dtype=bool)
-            for q in range(self.Q):
-                M[q, list(self._successors_key(q, mask, sig))] = True
-            self._matrix[key] = M
-        return M
+        return self._full_matrix(self._step_id(mask, sig))
 
     # ------------------------------------------------------------------------------------ some word
     def _some_action(self, S0: int, S1: int, mask: int, cross: tuple) -> tuple[int, int]:

@@ -137,3 +137,51 @@ def test_signature_and_rows_agree_with_the_step_key(case1):
             assert words.signature(s, t) == words.key(s, t)[:2]
             qs = list(range(words.Q))[:: 2]
             assert (fresh.rows(s, t, qs) == words.matrix(s, t)[qs]).all()
+
+
+CASE1_PROPS = ("r1_p1", "r1_p2", "r1_p4", "r3_p1", "r3_p4", "o1_p1", "o1_p2", "o1_p4", "o2_p1", "o2_p4")
+
+
+def _joint_search_agrees(ts, f, steps) -> int:
+    """Assert that the joint search gives every start state its own search's rows; the steps compared."""
+    words = ExecutedWords(ts, translate(f).with_ap(ts.propositions), relevant_mask(ts, f))
+    n = 0
+    for s, t in steps:
+        mask, sig = words.signature(s, t)
+        if sig and words._unbudgeted(len(sig)):
+            joint = words._search_all(mask, sig)
+            for q in range(words.Q):
+                assert list(words._search(q, mask, sig).items()) == list(joint[q].items())
+            n += 1
+    return n
+
+
+@settings(max_examples=30, deadline=None,
+          suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture])
+@given(small_formulas())
+def test_the_search_from_all_start_states_at_once_is_the_search_from_each(tiny, f):
+    """Searching a step's orders on relations (every start state at once) gives each start state the
+    successors and orders, in the same sequence, that searching from that state alone gives (every step of
+    the tiny TS; interleavings of a team's crossings can end in different NBA states)."""
+    ets = tiny.ts.build()
+    steps = [(ets.state(u), ets.state(int(v))) for u in range(ets.num_states) for v in ets.successors(u)]
+    _joint_search_agrees(tiny.ts, f, steps)
+
+
+@settings(max_examples=60, deadline=None,
+          suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture])
+@given(st.data(), st.integers(0, 10**6))
+def test_the_joint_search_agrees_on_steps_with_several_actions(case1, data, seed):
+    """The same on case I steps with several visible actions (families of subsets passed on)."""
+    ts = case1.ts
+    leaves = st.sampled_from([Ap(p) for p in CASE1_PROPS])
+    f = data.draw(st.recursive(leaves, lambda sub: st.one_of(
+        st.builds(lambda op, x: op(x), st.sampled_from(UNARY), sub),
+        st.builds(lambda op, x, y: op(x, y), st.sampled_from(BINARY), sub, sub)), max_leaves=6))
+    rng = np.random.default_rng(seed)
+    s, steps = ts.initial, []
+    for _ in range(6):
+        succ = list(ts.successor_states(s))
+        steps += [(s, succ[int(k)]) for k in rng.integers(0, len(succ), size=8)]
+        s = succ[int(rng.integers(len(succ)))]
+    _joint_search_agrees(ts, f, steps)
