@@ -446,13 +446,14 @@ class _Tree:
         parents = self.node_of[pred[pi], pq]
         base = self.C[parents] + chi[pi]
         T = p.labels.T[self.lid[pred[pi]], pq]  # (candidates, Q): NBA moves of each candidate
-        vis = np.flatnonzero(seen)
-        if len(vis):  # steps whose crossings the task sees: executed-word moves instead of the label's
+        vc = np.flatnonzero(seen[pi])
+        if len(vc):  # steps whose crossings the task sees: executed-word moves instead of the label's
             T = T.copy()
-            lo, hi = np.searchsorted(pi, vis, "left").tolist(), np.searchsorted(pi, vis, "right").tolist()
-            for k, a, b in zip(vis.tolist(), lo, hi):  # pi is sorted: the rows of k are pi[a:b]
-                if b > a:
-                    T[a:b] = p.words.rows(self.states[int(pred[k])], s, pq[a:b])
+            step_id, states = p.words.step_id, self.states
+            src_tids = pred[pi[vc]]
+            tids, inv = np.unique(src_tids, return_inverse=True)
+            sids = np.array([step_id(states[u], s) for u in tids.tolist()], dtype=np.int64)
+            T[vc] = p.words.step_rows(sids[inv.ravel()], pq[vc])
         tot = np.where(T, base[:, None], INF)
         best = tot.argmin(axis=0)
         best_cost = tot[best, np.arange(self.Q)]
@@ -488,8 +489,9 @@ class _Tree:
                 pred = pred[[self.states[u] not in p.banned[s] for u in pred]].astype(np.int64)
             chi = p.trans.cost(row, X[pred])
             seen = p.words.visible(X[pred], s)
+        out_sids = np.full(len(pred), -1, dtype=np.int64)  # step ids of s -> pred[k], filled when needed
         for v in dict.fromkeys(changed):  # symmetric relation and χ: successors of s are its predecessors
-            self._rewire_from(v, pred, chi, seen)
+            self._rewire_from(v, pred, chi, seen, out_sids)
 
     def _link(self, tid: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """The neighbours of the new tree state ``tid`` among the earlier ones (symmetric strategies): the
@@ -517,9 +519,9 @@ class _Tree:
         nb, chi, seen = self._adj[tid]
         return np.array(nb, dtype=np.int64), np.array(chi, dtype=float), np.array(seen, dtype=bool)
 
-    def _rewire_from(self, v: int, succ: np.ndarray, chi: np.ndarray, vis: np.ndarray) -> None:
+    def _rewire_from(self, v: int, succ: np.ndarray, chi: np.ndarray, vis: np.ndarray, sids: np.ndarray) -> None:
         """Reparent the nodes at TS states ``succ`` (with costs ``chi`` from v's state; ``vis``: the steps
-        whose crossings the task sees) through v."""
+        whose crossings the task sees; ``sids``: their step ids where known, else -1, filled in here) through v."""
         p = self.p
         tid = self.n_tid[v]
         s = self.states[tid]
@@ -535,12 +537,16 @@ class _Tree:
             ys = self.node_of[succ[vk]]
             Cy = np.where((ys >= 0) & (ys != v), self.C[np.maximum(ys, 0)], -INF)
             vk = vk[(new_cost[vk][:, None] < Cy - 1e-9).any(axis=1)]
-        for k in vk:
-            row = p.words.rows(s, self.states[int(succ[k])], [self.n_q[v]])[0]
-            for q2 in np.flatnonzero(row):
-                y = int(self.node_of[succ[k], q2])
-                if y >= 0:
-                    self._try_reparent(y, v, float(chi[k]))
+        if len(vk) == 0:
+            return
+        unknown = vk[sids[vk] < 0]
+        if len(unknown):
+            step_id, states = p.words.step_id, self.states
+            sids[unknown] = [step_id(s, states[u]) for u in succ[unknown].tolist()]
+        R = p.words.step_rows(sids[vk], np.full(len(vk), self.n_q[v], dtype=np.int64))
+        ys = self.node_of[succ[vk]]
+        for a, q2 in zip(*np.nonzero(R & (ys >= 0))):
+            self._try_reparent(int(ys[a, q2]), v, float(chi[vk[a]]))
 
     def _try_reparent(self, y: int, v: int, w: float) -> None:
         if y != v and self.C[v] + w < self.C[y] - 1e-9:
