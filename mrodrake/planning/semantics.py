@@ -208,6 +208,7 @@ class GuardTable:
     def __init__(self, nba: NBA):
         self.nba = nba
         self._tables: dict[int, tuple | None] = {}
+        self._joint: tuple | None = None
 
     def _table(self, q: int):
         """(groups, all cubes, (destination, its cubes)...) of state q, or None for few cubes.  A group is
@@ -217,33 +218,35 @@ class GuardTable:
         flat = [(p, n, d) for g, d in self.nba.edges[q] for p, n in g]
         table = None
         if len(flat) > self.min_cubes:
-            used = 0
-            for p, n, _ in flat:
-                used |= p | n
-            bits = [b for b in range(used.bit_length()) if used >> b & 1]
-            need = dict.fromkeys(bits, 0)
-            forbid = dict.fromkeys(bits, 0)
             to: dict[int, int] = {}
-            for c, (p, n, d) in enumerate(flat):
-                for b in bits:
-                    if p >> b & 1:
-                        need[b] |= 1 << c
-                    if n >> b & 1:
-                        forbid[b] |= 1 << c
+            for c, (_, _, d) in enumerate(flat):
                 to[d] = to.get(d, 0) | 1 << c
-            k = self.group_bits
-            groups = tuple((sum(1 << b for b in bits[i:i + k]), tuple((b, need[b], forbid[b]) for b in bits[i:i + k]),
-                            {}) for i in range(0, len(bits), k))
-            table = (groups, (1 << len(flat)) - 1, tuple(to.items()))
+            table = (self._groups([(p, n) for p, n, _ in flat], self.group_bits), (1 << len(flat)) - 1,
+                     tuple(to.items()))
         self._tables[q] = table
         return table
 
-    def successors_mask(self, q: int, letter: int) -> int:
-        """Bit mask of δ(q, letter)."""
-        table = self._table(q)
-        if table is None:
-            return sum(1 << d for d in self.nba.successors(q, letter))
-        groups, alive, to = table
+    @staticmethod
+    def _groups(flat: list[tuple[int, int]], k: int) -> tuple:
+        """The groups of a table over the cubes ``flat`` (pos, neg), cube c as bit c."""
+        used = 0
+        for p, n in flat:
+            used |= p | n
+        bits = [b for b in range(used.bit_length()) if used >> b & 1]
+        need = dict.fromkeys(bits, 0)
+        forbid = dict.fromkeys(bits, 0)
+        for c, (p, n) in enumerate(flat):
+            for b in bits:
+                if p >> b & 1:
+                    need[b] |= 1 << c
+                if n >> b & 1:
+                    forbid[b] |= 1 << c
+        return tuple((sum(1 << b for b in bits[i:i + k]), tuple((b, need[b], forbid[b]) for b in bits[i:i + k]), {})
+                     for i in range(0, len(bits), k))
+
+    @staticmethod
+    def _holding(groups: tuple, alive: int, letter: int) -> int:
+        """The cubes of ``alive`` that ``letter`` satisfies."""
         for gmask, gbits, memo in groups:
             v = letter & gmask
             f = memo.get(v)
@@ -254,7 +257,38 @@ class GuardTable:
                 memo[v] = f
             alive &= ~f
             if not alive:
-                return 0
+                break
+        return alive
+
+    def columns(self, letter: int) -> tuple[tuple[int, int], ...]:
+        """(q, δ(q, letter) as a mask) for every state q with successors: one table over the cubes of all
+        states, so a letter costs one lookup per group for the whole NBA."""
+        if self._joint is None:
+            flat, edges = [], []
+            for q, row in enumerate(self.nba.edges):
+                for g, d in row:
+                    cubes = 0
+                    for p, n in g:
+                        cubes |= 1 << len(flat)
+                        flat.append((p, n))
+                    edges.append((q, d, cubes))
+            self._joint = (self._groups(flat, self.group_bits), (1 << len(flat)) - 1, tuple(edges))
+        groups, alive, edges = self._joint
+        alive = self._holding(groups, alive, letter)
+        out: dict[int, int] = {}
+        if alive:
+            for q, d, cubes in edges:
+                if alive & cubes:
+                    out[q] = out.get(q, 0) | 1 << d
+        return tuple(out.items())
+
+    def successors_mask(self, q: int, letter: int) -> int:
+        """Bit mask of δ(q, letter)."""
+        table = self._table(q)
+        if table is None:
+            return sum(1 << d for d in self.nba.successors(q, letter))
+        groups, alive, to = table
+        alive = self._holding(groups, alive, letter)
         out = 0
         for d, cubes in to:
             if alive & cubes:
@@ -387,15 +421,21 @@ class ExecutedWords:
         if cid is None:
             events, pre = _events(cross)
             n = len(events)
-            nodes, seen = [], {0}
-            for D in range(1 << n):
-                if D not in seen:
+            nodes, seen = [], {0: (0, 0)}  # reachable downset -> (bits its events clear, bits they set)
+            for D in range(1 << n):  # a downset is reached from smaller ones only
+                hit = seen.get(D)
+                if hit is None:
                     continue
-                clear = sum(1 << b for i, (b, sign) in enumerate(events) if D >> i & 1 and sign < 0)
-                put = sum(1 << b for i, (b, sign) in enumerate(events) if D >> i & 1 and sign > 0)
-                succ = tuple(D | 1 << i for i in range(n) if not D >> i & 1 and D & pre[i] == pre[i])
-                seen.update(succ)
-                nodes.append((D, ~clear, put, succ))
+                clear, put = hit
+                succ = []
+                for i in range(n):
+                    if not D >> i & 1 and D & pre[i] == pre[i]:
+                        D2 = D | 1 << i
+                        succ.append(D2)
+                        if D2 not in seen:
+                            b, sign = events[i]
+                            seen[D2] = (clear | 1 << b, put) if sign < 0 else (clear, put | 1 << b)
+                nodes.append((D, ~clear, put, tuple(succ)))
             cid = self._cross_ids[cross] = len(self._lattices)
             self._lattices.append(nodes)
             chain = all(len(succ) <= 1 for *_, succ in nodes)
@@ -551,12 +591,7 @@ class ExecutedWords:
         """(j, δ(j, letter) as a mask) for the NBA states j with successors (cached)."""
         cols = self._columns.get(letter)
         if cols is None:
-            cols = []
-            for j in range(self.Q):
-                m = self.delta(1 << j, letter)
-                if m:
-                    cols.append((j, m))
-            cols = self._columns[letter] = tuple(cols)
+            cols = self._columns[letter] = self.guards.columns(letter)
         return cols
 
     def _read(self, R: int, letter: int) -> int:

@@ -342,6 +342,7 @@ class _Tree:
         self._opts: dict[int, list] = {}
         self._adj: list[list[list]] = []  # per tree state: neighbours, χ, visibility (symmetric strategies)
         self.iterations = 0
+        self._reparents = 0  # reparentings so far (tells when costs may have fallen)
         tid = self._add_state(root)
         if planner.strategy.symmetric:
             self._link(tid)
@@ -397,6 +398,7 @@ class _Tree:
         return bool(self.p.words.rows(s, s_a, [self.n_q[v]])[0, q_a])
 
     def _reparent(self, v: int, u: int, w: float) -> None:
+        self._reparents += 1
         old = self.parent[v]
         if old >= 0:
             self.children[old].remove(v)
@@ -450,10 +452,11 @@ class _Tree:
         if len(vc):  # steps whose crossings the task sees: executed-word moves instead of the label's
             T = T.copy()
             step_id, states = p.words.step_id, self.states
-            src_tids = pred[pi[vc]]
-            tids, inv = np.unique(src_tids, return_inverse=True)
-            sids = np.array([step_id(states[u], s) for u in tids.tolist()], dtype=np.int64)
-            T[vc] = p.words.step_rows(sids[inv.ravel()], pq[vc])
+            pv = pi[vc]  # sorted: the candidates of one parent state are consecutive
+            first = np.ones(len(pv), dtype=bool)
+            first[1:] = pv[1:] != pv[:-1]
+            sids = np.array([step_id(states[u], s) for u in pred[pv[first]].tolist()], dtype=np.int64)
+            T[vc] = p.words.step_rows(sids[np.cumsum(first) - 1], pq[vc])
         tot = np.where(T, base[:, None], INF)
         best = tot.argmin(axis=0)
         best_cost = tot[best, np.arange(self.Q)]
@@ -489,9 +492,8 @@ class _Tree:
                 pred = pred[[self.states[u] not in p.banned[s] for u in pred]].astype(np.int64)
             chi = p.trans.cost(row, X[pred])
             seen = p.words.visible(X[pred], s)
-        out_sids = np.full(len(pred), -1, dtype=np.int64)  # step ids of s -> pred[k], filled when needed
-        for v in dict.fromkeys(changed):  # symmetric relation and χ: successors of s are its predecessors
-            self._rewire_from(v, pred, chi, seen, out_sids)
+        if changed:  # symmetric relation and χ: successors of s are its predecessors
+            self._rewire(list(dict.fromkeys(changed)), pred, chi, seen)
 
     def _link(self, tid: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """The neighbours of the new tree state ``tid`` among the earlier ones (symmetric strategies): the
@@ -519,34 +521,62 @@ class _Tree:
         nb, chi, seen = self._adj[tid]
         return np.array(nb, dtype=np.int64), np.array(chi, dtype=float), np.array(seen, dtype=bool)
 
-    def _rewire_from(self, v: int, succ: np.ndarray, chi: np.ndarray, vis: np.ndarray, sids: np.ndarray) -> None:
-        """Reparent the nodes at TS states ``succ`` (with costs ``chi`` from v's state; ``vis``: the steps
-        whose crossings the task sees; ``sids``: their step ids where known, else -1, filled in here) through v."""
+    def _rewire(self, vs: list[int], succ: np.ndarray, chi: np.ndarray, vis: np.ndarray) -> None:
+        """Reparent the nodes at TS states ``succ`` (with costs ``chi`` from the state of the nodes ``vs``, all
+        at one TS state; ``vis``: the steps whose crossings the task sees) through each node of vs in turn.
+
+        Per node v, the candidates are the nodes v would make cheaper by the costs when v's turn starts, first
+        through the steps the task does not see (for the NBA moves of v's label), then, by the costs after
+        those, through the visible ones (executed-word rows asked only for states with such a node), each
+        re-checked when reached.  The tests of consecutive nodes are evaluated together, again after any
+        reparenting (costs only fall, so a test made before it could miss a candidate)."""
         p = self.p
-        tid = self.n_tid[v]
+        C = self.C
+        tid = self.n_tid[vs[0]]
         s = self.states[tid]
-        new_cost = self.C[v] + chi
-        q2s = p.labels.succ[self.lid[tid]][self.n_q[v]]
-        if q2s:  # candidates by the costs before any reparenting (they only fall), re-checked in order
-            ys = self.node_of[succ][:, q2s].T
-            better = ~vis & (ys >= 0) & (new_cost < self.C[np.maximum(ys, 0)] - 1e-9)
-            for a, k in zip(*np.nonzero(better)):
-                self._try_reparent(int(ys[a, k]), v, float(chi[k]))
-        vk = np.flatnonzero(vis)
-        if len(vk):  # costs only fall while rewiring: skip states where no node can get cheaper through v
-            ys = self.node_of[succ[vk]]
-            Cy = np.where((ys >= 0) & (ys != v), self.C[np.maximum(ys, 0)], -INF)
-            vk = vk[(new_cost[vk][:, None] < Cy - 1e-9).any(axis=1)]
-        if len(vk) == 0:
-            return
-        unknown = vk[sids[vk] < 0]
-        if len(unknown):
-            step_id, states = p.words.step_id, self.states
-            sids[unknown] = [step_id(s, states[u]) for u in succ[unknown].tolist()]
-        R = p.words.step_rows(sids[vk], np.full(len(vk), self.n_q[v], dtype=np.int64))
-        ys = self.node_of[succ[vk]]
-        for a, q2 in zip(*np.nonzero(R & (ys >= 0))):
-            self._try_reparent(int(ys[a, q2]), v, float(chi[vk[a]]))
+        Y = self.node_of[succ]  # (states, Q): fixed while rewiring (no new nodes)
+        has = Y >= 0
+        Yc = np.maximum(Y, 0)
+        hidden = ~vis[:, None] & has  # (states, Q)
+        vk_all = np.flatnonzero(vis)
+        moves = p.labels.T[self.lid[tid]]
+        sids = np.full(len(succ), -1, dtype=np.int64)  # step ids of s -> succ[k], filled when needed
+        i = 0
+        while i < len(vs):
+            batch = np.array(vs[i:], dtype=np.int64)
+            CY = C[Yc] - 1e-9
+            newc = C[batch][:, None] + chi[None, :]  # (batch, states)
+            cheaper = newc[:, :, None] < CY[None, :, :]  # (batch, states, Q)
+            first = (moves[np.asarray(self.n_q, dtype=np.int64)[batch]][:, None, :] & hidden[None] & cheaper
+                     ).transpose(0, 2, 1)  # (batch, Q, states): NBA state first, as the moves are listed
+            if len(vk_all):
+                other = has[vk_all][None] & (Y[vk_all][None] != batch[:, None, None])
+                later = (cheaper[:, vk_all] & other).any(axis=2)  # (batch, visible states)
+            done = self._reparents
+            for b, v in enumerate(batch.tolist()):
+                for q2, k in zip(*np.nonzero(first[b])):
+                    self._try_reparent(int(Y[k, q2]), v, float(chi[k]))
+                if not len(vk_all):
+                    continue
+                if self._reparents != done:
+                    Yv = Y[vk_all]
+                    later_v = ((C[v] + chi[vk_all])[:, None] < C[np.maximum(Yv, 0)] - 1e-9) & (Yv >= 0) & (Yv != v)
+                    vk = vk_all[later_v.any(axis=1)]
+                else:
+                    vk = vk_all[later[b]]
+                if len(vk):
+                    unknown = vk[sids[vk] < 0]
+                    if len(unknown):
+                        step_id, states = p.words.step_id, self.states
+                        sids[unknown] = [step_id(s, states[u]) for u in succ[unknown].tolist()]
+                    R = p.words.step_rows(sids[vk], np.full(len(vk), self.n_q[v], dtype=np.int64))
+                    for a, q2 in zip(*np.nonzero(R & has[vk])):
+                        self._try_reparent(int(Y[vk[a], q2]), v, float(chi[vk[a]]))
+                if self._reparents != done:
+                    i += b + 1
+                    break
+            else:
+                i = len(vs)
 
     def _try_reparent(self, y: int, v: int, w: float) -> None:
         if y != v and self.C[v] + w < self.C[y] - 1e-9:

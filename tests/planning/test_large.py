@@ -1,5 +1,6 @@
 """What makes STyLuS* scale on the object TS: the sampler travels along routes of connected regions, guards
-with many cubes are evaluated as packed bit tables (same answers), and large systems focus the selection."""
+with many cubes are evaluated as bit tables per group of propositions (same answers), and large systems focus the
+selection."""
 
 from __future__ import annotations
 
@@ -63,6 +64,7 @@ def test_guard_table_agrees_with_the_nba(big_nba, data):
     for b in flips:
         letter ^= 1 << b
     assert table.successors_mask(q, letter) == sum(1 << d for d in nba.successors(q, letter))
+    assert dict(table.columns(letter)).get(q, 0) == sum(1 << d for d in nba.successors(q, letter))
     assert (table._table(q) is not None) == (len(cubes) > GuardTable.min_cubes)
 
 
