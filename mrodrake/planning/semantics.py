@@ -343,7 +343,7 @@ class ExecutedWords:
         self._col = sum(1 << (self.Q * q) for q in range(self.Q))  # bit 0 of every row of a relation
         self._identity = sum(1 << (self.Q * q + q) for q in range(self.Q))
         self._columns: dict[int, tuple[tuple[int, int], ...]] = {}
-        self._joint: dict[tuple, tuple[frozenset, int]] = {}
+        self._joint: dict[tuple, tuple[tuple[int, ...], int]] = {}
 
     # ------------------------------------------------------------------------------------ NBA on subsets
     def delta(self, S: int, letter: int) -> int:
@@ -603,9 +603,10 @@ class ExecutedWords:
                 out |= c * m
         return out
 
-    def _after_all(self, F: frozenset, mask: int, cid: int) -> tuple[frozenset, int]:
+    def _after_all(self, F: tuple[int, ...], mask: int, cid: int) -> tuple[tuple[int, ...], int]:
         """:meth:`_after` for all start states at once: F is a family of relations (one per interleaving so
-        far).  A start state that some interleaving takes to the empty set is dropped from every member."""
+        far, a sorted tuple).  A start state that some interleaving takes to the empty set is dropped from every
+        member."""
         key = (F, mask, cid)
         hit = self._joint.get(key)
         if hit is not None:
@@ -644,7 +645,7 @@ class ExecutedWords:
                 alive &= nz
             keep_rows = alive * ((1 << Q) - 1)
             images = {R & keep_rows for R in images}
-        out = (frozenset(images), last)
+        out = (tuple(sorted(images)), last)
         self._joint[key] = out
         return out
 
@@ -656,7 +657,7 @@ class ExecutedWords:
         ids = [self._cross_id(c) for c in sig]
         after, known = self._after_all, self._joint
         covered = 0
-        stack = [(frozenset([self._identity]), mask, (1 << n) - 1, ())]
+        stack = [((self._identity,), mask, (1 << n) - 1, ())]
         while stack:
             F, m, left, prefix = stack.pop()
             if left == 0:
@@ -742,13 +743,19 @@ class ExecutedWords:
         return self._row_store[at]
 
     def _add_row(self, f: int) -> None:
+        """Store row f = sid·Q + q, with every other row of step sid whose orders are known by then."""
+        Q = self.Q
+        sid, q = divmod(f, Q)
+        self._orders(q, sid)
+        orders, base = self._step_orders[sid], sid * Q
+        new = [x for x in range(Q) if orders[x] is not None and self._row_at[base + x] < 0]
         k = self._num_rows
-        if k == len(self._row_store):
+        while k + len(new) > len(self._row_store):
             self._row_store = np.concatenate([self._row_store, np.zeros_like(self._row_store)])
-        sid, q = divmod(f, self.Q)
-        self._row_store[k, list(self._orders(q, sid))] = True
-        self._row_at[f] = k
-        self._num_rows = k + 1
+        cells = [(k + i) * Q + d for i, x in enumerate(new) for d in orders[x]]
+        self._row_store.reshape(-1)[cells] = True
+        self._row_at[[base + x for x in new]] = np.arange(k, k + len(new))
+        self._num_rows = k + len(new)
 
     def _full_matrix(self, sid: int) -> np.ndarray:
         M = self._full.get(sid)

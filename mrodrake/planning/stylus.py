@@ -209,6 +209,7 @@ class ObjectStrategy:
         # continue a chain of steps toward a goal: focus on the closest node (see _Tree.select)
         self.focus = 0.0 if ts.N + ts.M <= FOCUS_ENTITIES else 0.8
         self._cubes: dict[tuple[int, int], CubeGoal] = {}
+        self._goals: dict[tuple, Goal | None] = {}
         self._dlist = ts.dist.tolist()
         self._dscale = float(ts.dist.max()) * (ts.N + ts.M) + 1.0
 
@@ -241,11 +242,17 @@ class ObjectStrategy:
         return cg
 
     def goal(self, pos: int, neg: int, target: State | None) -> Goal | None:
-        """The regions the cube asks for (completed by ``target``'s when closing a suffix), or None."""
+        """The regions the cube asks for (completed by ``target``'s when closing a suffix), or None (cached;
+        the sampler only reads goals)."""
+        key = (pos, neg, target)
+        if key in self._goals:
+            return self._goals[key]
         cg = self.cube(pos, neg)
-        if target is None and not cg.required and not cg.forbidden:
-            return None
-        return Goal.from_cube(cg.required, cg.forbidden, target, self.ts)
+        g = None
+        if target is not None or cg.required or cg.forbidden:
+            g = Goal.from_cube(cg.required, cg.forbidden, target, self.ts)
+        self._goals[key] = g
+        return g
 
     def cube_steps(self, s: State, pos: int, neg: int, target: State | None = None) -> float:
         """Rough number of TS steps until s satisfies the cube (navigate, grasp, transport; the travel
