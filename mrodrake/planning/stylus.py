@@ -73,7 +73,7 @@ from mrodrake.planning.product import (
     useful_states,
 )
 from mrodrake.planning.sampler import Goal, SuccessorSampler
-from mrodrake.planning.semantics import ExecutedWords
+from mrodrake.planning.semantics import ExecutedWords, GuardTable
 from mrodrake.ts import State, TransitionSystem
 
 INF = math.inf
@@ -210,6 +210,7 @@ class ObjectStrategy:
         self.focus = 0.0 if ts.N + ts.M <= FOCUS_ENTITIES else 0.8
         self._cubes: dict[tuple[int, int], CubeGoal] = {}
         self._goals: dict[tuple, Goal | None] = {}
+        self._steps: dict[tuple, float] = {}  # cube_steps per (state, cube)
         self._dlist = ts.dist.tolist()
         self._dscale = float(ts.dist.max()) * (ts.N + ts.M) + 1.0
 
@@ -257,7 +258,11 @@ class ObjectStrategy:
     def cube_steps(self, s: State, pos: int, neg: int, target: State | None = None) -> float:
         """Rough number of TS steps until s satisfies the cube (navigate, grasp, transport; the travel
         distance still needed breaks ties), used to choose among the guard cubes to aim at (``target``, the
-        root of a suffix tree, is not used)."""
+        root of a suffix tree, is not used; cached per state and cube)."""
+        key = (s, pos, neg)
+        hit = self._steps.get(key)
+        if hit is not None:
+            return hit
         cg = self.cube(pos, neg)
         ts = self.ts
         N = ts.N
@@ -281,7 +286,8 @@ class ObjectStrategy:
         for e, mask in cg.forbidden.items():
             if mask >> s[e] & 1 and e not in cg.required:
                 steps += 1 if e < N else 3
-        return steps + dist / self._dscale
+        out = self._steps[key] = steps + dist / self._dscale
+        return out
 
 
 def strategy_for(ts, relevant: int):
@@ -301,6 +307,7 @@ class _Labels:
         self.masks: list[int] = []
         self.succ: list[list[tuple[int, ...]]] = []
         self.T = np.zeros((64, self.Q, self.Q), dtype=bool)
+        self.guards = GuardTable(nba)  # δ(q, L(s)) for every q at once
 
     def lid(self, s: State) -> int:
         m = self.ts.label_mask(s)
@@ -309,12 +316,13 @@ class _Labels:
             k = len(self.masks)
             self.ids[m] = k
             self.masks.append(m)
-            rows = [tuple(self.nba.successors(q, m)) for q in range(self.Q)]
+            Q = self.Q
+            cols = dict(self.guards.columns(m))
+            rows = [tuple(d for d in range(Q) if cols.get(q, 0) >> d & 1) for q in range(Q)]
             self.succ.append(rows)
             if k >= len(self.T):
                 self.T = np.concatenate([self.T, np.zeros_like(self.T)])
-            for q, r in enumerate(rows):
-                self.T[k, q, list(r)] = True
+            self.T[k].reshape(-1)[[q * Q + d for q, r in enumerate(rows) for d in r]] = True
         return k
 
 
