@@ -134,6 +134,7 @@ class RegionGraph:
         self._no = np.full((K, K), np.inf)     # smallest radius known separated
         self._base: dict[float, tuple] = {}
         self._matrix: dict[float, np.ndarray] = {}
+        self._travel: dict[float, np.ndarray] = {}
         self._spaces: dict[tuple, object] = {}  # travel_space answers
 
     def _key(self, radius: float) -> float:
@@ -161,6 +162,22 @@ class RegionGraph:
             K = len(self.regions)
             C = np.array([[self.connected(r, k, k2) for k2 in range(K)] for k in range(K)], dtype=bool)
             self._matrix[r] = C
+        return C
+
+    def travel_matrix(self, radius: float) -> np.ndarray:
+        """``C[k, k']`` of :meth:`matrix` for k ≠ k' (travel from one region to another); the diagonal, which
+        staying in a region does not need, is True and not computed."""
+        r = self._key(radius)
+        C = self._travel.get(r)
+        if C is None:
+            full = self._matrix.get(r)
+            if full is not None:
+                C = full.copy()
+            else:
+                K = len(self.regions)
+                C = np.array([[k == k2 or self.connected(r, k, k2) for k2 in range(K)] for k in range(K)], dtype=bool)
+            np.fill_diagonal(C, True)
+            self._travel[r] = C
         return C
 
     def _geometry(self, r: float) -> tuple:

@@ -157,6 +157,7 @@ class TransitionSystem:
         self._fit_memo: dict[int, dict[int, int]] = {}
         self._graph: RegionGraph | None = None
         self._conn: dict[float, np.ndarray] = {}
+        self._travel: dict[float, np.ndarray] = {}
         self.initial = tuple(
             [self._region_index[r.initial_region] for r in scenario.robots]
             + [self._region_index[o.initial_region] for o in scenario.objects]
@@ -209,6 +210,14 @@ class TransitionSystem:
         C = self._conn.get(radius)
         if C is None:
             C = self._conn[radius] = self.region_graph.matrix(radius)
+        return C
+
+    def travel(self, radius: float) -> np.ndarray:
+        """``C[k, k']`` of :meth:`connections` for k ≠ k' (the diagonal is True and not computed: staying in a
+        region needs no travel)."""
+        C = self._travel.get(radius)
+        if C is None:
+            C = self._travel[radius] = self.region_graph.travel_matrix(radius)
         return C
 
     def connected(self, radius: float, k: int, k2: int) -> bool:

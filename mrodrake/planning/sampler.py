@@ -159,7 +159,7 @@ class SuccessorSampler:
     def _hop(self, radius: float, src: int, dst: int) -> int:
         """The region to travel to from ``src`` toward ``dst``: ``dst`` itself when they are connected for
         ``radius``, else the next region on a shortest route of connected regions (``dst`` if none)."""
-        C = self.ts.connections(radius)
+        C = self.ts.travel(radius)
         if C[src, dst]:
             return dst
         key = (id(C), dst)
@@ -315,7 +315,7 @@ class SuccessorSampler:
         for j in range(M):
             team = teams[j]
             if team and sum(self.power[i] for i in team) >= self.required_power[j] and rng.random() < 0.5:
-                C = self.ts.connections(self.ts.covering_radius(j, tuple(team)))[O[j]]
+                C = self.ts.travel(self.ts.covering_radius(j, tuple(team)))[O[j]]
                 dests = [k for k in range(K) if k != O[j] and C[k]]
                 if not dests:
                     continue
@@ -333,7 +333,7 @@ class SuccessorSampler:
             if rng.random() < self.p_idle:
                 continue
             grasps = [j for j in range(M) if O[j] == R[i] and stays[j]]
-            C = self.ts.connections(self.ts.robot_radius[i])[R[i]]
+            C = self.ts.travel(self.ts.robot_radius[i])[R[i]]
             dests = [k for k in range(K) if k != R[i] and C[k]]
             n_opts = len(dests) + len(grasps)
             if n_opts == 0:

@@ -102,7 +102,7 @@ class _Transitions:
         the robot to stay, the object involved to stay, and never switches objects; a robot that keeps
         grasping an object moves iff the object moves.  These imply that a moving object keeps its team,
         so per object only Λ with s's team remains (required powers are > 0, so the team is non-empty).
-        Last, every region change must be travelled (``TransitionSystem.connections`` for the robot's or the
+        Last, every region change must be travelled (``TransitionSystem.travel`` for the robot's or the
         team's radius) and the step must fit while executed one action at a time
         (``TransitionSystem.steps_fit``); both are symmetric too.
         """
@@ -113,7 +113,7 @@ class _Transitions:
             ok = np.ones(n, dtype=bool)
             moves = X[:, :N] != s[:N]
             for i in np.flatnonzero(moves.any(axis=0)):
-                C = self.ts.connections(self.ts.robot_radius[i])
+                C = self.ts.travel(self.ts.robot_radius[i])
                 rows = np.flatnonzero(moves[:, i])
                 ok[rows] &= C[X[rows, i], s[i]]
             rows = np.flatnonzero(ok)
@@ -146,7 +146,7 @@ class _Transitions:
         T = self._robots.get(key)
         if T is None:
             ts, M = self.ts, self.M
-            C = ts.connections(ts.robot_radius[i])
+            C = ts.travel(ts.robot_radius[i])
             T = np.zeros((ts.K, M + 1, 2), dtype=bool)
             for xr in range(ts.K):
                 for xg in range(-1, M):
@@ -178,7 +178,7 @@ class _Transitions:
             U = np.zeros(ts.K, dtype=bool)
             U[o] = True
             if team and not power < ts.required_power[j]:
-                C = ts.connections(ts.covering_radius(j, team))
+                C = ts.travel(ts.covering_radius(j, team))
                 U |= C[:, o]
             self._objects[key] = U
         return U
