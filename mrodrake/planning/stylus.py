@@ -537,14 +537,10 @@ class _Tree:
         return np.array(nb, dtype=np.int64), np.array(chi, dtype=float), np.array(seen, dtype=bool)
 
     def _rewire(self, vs: list[int], succ: np.ndarray, chi: np.ndarray, vis: np.ndarray) -> None:
-        """Reparent the nodes at TS states ``succ`` (with costs ``chi`` from the state of the nodes ``vs``, all
-        at one TS state; ``vis``: the steps whose crossings the task sees) through each node of vs in turn.
-
-        Per node v, the candidates are the nodes v would make cheaper by the costs when v's turn starts, first
-        through the steps the task does not see (for the NBA moves of v's label), then, by the costs after
-        those, through the visible ones (executed-word rows asked only for states with such a node), each
-        re-checked when reached.  The tests of consecutive nodes are evaluated together, again after any
-        reparenting (costs only fall, so a test made before it could miss a candidate)."""
+        """Reparent the nodes at TS states ``succ`` (costs ``chi`` from the one TS state of the nodes ``vs``;
+        ``vis``: the steps whose crossings the task sees) through each node of vs in turn, as testing them one by
+        one would: per node, the candidates through hidden steps by the costs at its turn, then through visible
+        ones by the costs after those.  Consecutive nodes are tested together until a reparenting lowers costs."""
         p = self.p
         C = self.C
         tid = self.n_tid[vs[0]]
