@@ -78,8 +78,10 @@ LEG_TOL = 0.25 * PATH_CLEARANCE
 APPROACH = 10.0
 #: Depth (m) of the entity's ball inside the approach disk at which the local law takes over.
 SETTLE_DEPTH = 0.05
-#: Point-world maps a sequencer keeps for reuse (:meth:`Sequencer._map`).
-MAP_CACHE = 4
+#: Point-world maps (and maps asked of the map worker) a sequencer keeps for reuse (:meth:`Sequencer._map`).
+MAP_CACHE = 6
+#: Navigations and transports ahead whose maps the map worker builds while the current one runs.
+PREFETCH_AHEAD = 2
 #: Distance (m) to its planned spot within which a parked entity is a hole of a motion's map as its planned
 #: spot with the radius grown by this much (:meth:`Sequencer._map_disks`): navigations and transports end
 #: within GOAL_TOL of theirs, dockings and back-offs within DOCK_TOL.
@@ -267,6 +269,11 @@ class Sequencer:
         self.block_start = tuple(min(t for t in range(s + 1) if self.block_end[t] == self.block_end[s])
                                  for s in range(len(self.steps)))
         self._floor = polygon(scenario.workspace.boundary)
+        if self.prefetch and self.execution is Execution.SEQUENTIAL:
+            try:  # the worker starts while the first motion builds its own map
+                map_worker()
+            except OSError:
+                self.prefetch = False
 
     # ------------------------------------------------------------------ names
     def team_name(self, j: int, team: Sequence[int]) -> str:
@@ -697,17 +704,29 @@ class Sequencer:
         return entity_free_space(self.scenario, m.radius, start, goal, m.src, m.dst, others, confine=confine)
 
     def _prefetch(self, ed: _Edit, X: np.ndarray) -> None:
-        """Ask the map worker (:mod:`mrodrake.control.mapworker`) for the map of the run's next navigation or
-        transport, on the free space :meth:`_motion_free_space` will give it if every entity that moves
-        before it stops within PARK_TOL of its planned spot and docked members make a team radius no larger
-        than planned (those parked now stay where they are).  A wrong guess costs a map nobody takes."""
+        """Ask the map worker (:mod:`mrodrake.control.mapworker`) for the maps of the run's next
+        :data:`PREFETCH_AHEAD` navigations and transports, each on the free space :meth:`_motion_free_space`
+        will give it if every entity that moves before it stops within PARK_TOL of its planned spot and docked
+        members make a team radius no larger than planned (those parked now stay where they are).  A wrong
+        guess costs a map nobody takes."""
         if not self.prefetch or self.execution is not Execution.SEQUENTIAL:
             return
         uid = ed.active.uid
-        nxt = next((u for u in range(uid + 1, len(self._ops))
-                    if self._ops[u].kind in (OpKind.NAVIGATE, OpKind.TRANSPORT)), None)
-        if nxt is None:
-            return
+        ahead = [u for u in range(uid + 1, len(self._ops)) if self._ops[u].kind in (OpKind.NAVIGATE, OpKind.TRANSPORT)]
+        for nxt in ahead[:PREFETCH_AHEAD]:
+            free = self._predicted_free_space(X, uid, nxt)
+            if free is None or free.polygon.wkb in self._maps:
+                continue
+            try:
+                self._maps[free.polygon.wkb] = map_worker().submit(free.polygon, MAP_OPTIONS)
+            except OSError:  # no worker process on this machine: every map is built in the mission
+                self.prefetch = False
+                return
+            self._trim_maps()
+
+    def _predicted_free_space(self, X: np.ndarray, uid: int, nxt: int):
+        """The free space of the motion ``nxt`` as :meth:`_motion_free_space` will make it, seen before
+        primitive ``uid`` runs: the entities that move in between at their planned spots (None: no such F)."""
         op, planned = self._ops[nxt], self._planned[nxt]
         act = op.action
         if op.kind is OpKind.NAVIGATE:
@@ -722,18 +741,10 @@ class Sequencer:
                 at[e] = planned[e]
         goal = np.asarray(op.goal, dtype=float)
         try:
-            free = entity_free_space(self.scenario, radius, goal, goal, act.src, act.dst,
+            return entity_free_space(self.scenario, radius, goal, goal, act.src, act.dst,
                                      self._map_disks(at, {entity, *team}, planned))
         except UserError:
-            return
-        key = free.polygon.wkb
-        if key not in self._maps:
-            try:
-                self._maps[key] = map_worker().submit(free.polygon, MAP_OPTIONS)
-            except OSError:  # no worker process on this machine: every map is built in the mission
-                self.prefetch = False
-                return
-            self._trim_maps()
+            return None
 
     def _map_task(self, ed: _Edit, X: np.ndarray, m: Motion, threshold: float) -> Motion:
         """The point-world law from where the entity is: on the map of the whole motion (``m.world``) if it
