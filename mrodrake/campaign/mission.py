@@ -105,7 +105,7 @@ def execute(task: MissionTask) -> dict:
         if task.inject == "raise":
             raise RuntimeError(f"injected failure (spec inject[{task.index}])")
         mission = Mission(scenario, plan, suffix_cycles=task.suffix_cycles, seed=task.layout_seed,
-                          execution=task.execution)
+                          execution=task.execution, prefetch=False)  # the campaign runs a mission per core
 
         def stop() -> None:
             stopped.set()

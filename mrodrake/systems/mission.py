@@ -153,7 +153,9 @@ class Mission:
     per (object, team) of the plan's transports, one :class:`~mrodrake.systems.controllers.MissionControllers`
     system with a navigation controller per robot and a transport controller per team plant, a state switch
     per entity, the :class:`~mrodrake.systems.supervisor.Supervisor` (the
-    sequencer's ports) and a :class:`MissionLogger`.
+    sequencer's ports) and a :class:`MissionLogger`.  ``prefetch``: the maps of the next motions are built by
+    a map worker process on another core while the current one runs (the same mission either way; off where
+    every core already runs a mission, as in campaigns).
 
     Integration: Drake's error-controlled RK3 with ``accuracy`` 1e-3.  Drake weights every state component
     by 1, so this bounds the local error per step to about 1 mm (m/s) on positions (velocities): two orders
@@ -164,7 +166,7 @@ class Mission:
     def __init__(self, scenario: Scenario, plan, suffix_cycles: int = 1, seed: int = 0, *, log_period: float = 0.5,
                  check_period: float = 0.5, accuracy: float = 1e-3, max_step: float = 2.0,
                  integrator: str = "runge_kutta3", rest_speed: float | None = None,
-                 execution: Execution | str = Execution.SEQUENTIAL):
+                 execution: Execution | str = Execution.SEQUENTIAL, prefetch: bool = True):
         if suffix_cycles < 0:
             raise UserError(f"--suffix-cycles: must be >= 0, got {suffix_cycles}")
         if plan.scenario != scenario.name:
@@ -183,7 +185,7 @@ class Mission:
         kw = {} if rest_speed is None else {"rest_speed": rest_speed}
         self.execution = _execution(execution)
         self.sequencer = Sequencer(scenario, self.ts, self.words, self.placement, couplings_of(plan),
-                                   execution=self.execution, **kw)
+                                   execution=self.execution, prefetch=prefetch, **kw)
 
         b = DiagramBuilder()
         gains = AdaptiveGains.from_scenario(scenario.control)

@@ -17,8 +17,7 @@ def test_prefetched_maps_change_nothing_but_where_they_are_built():
     plan = plan_scenario(sc, "stylus", seed=0)
     runs = []
     for prefetch in (True, False):
-        mission = Mission(sc, plan, suffix_cycles=1, seed=0)
-        mission.sequencer.prefetch = prefetch
+        mission = Mission(sc, plan, suffix_cycles=1, seed=0, prefetch=prefetch)
         log = mission.run()
         assert log.ok, log.message
         runs.append((log, mission.sequencer.map_sources, mission.simulator.get_num_steps_taken()))
