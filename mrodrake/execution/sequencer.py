@@ -225,9 +225,9 @@ class Sequencer:
     (object, team) pairs of the plan's transports, each with a team plant and controller.  ``execution``:
     one primitive at a time (the paper), or every job of :func:`~mrodrake.execution.schedule.dependency_graph`
     as soon as its predecessors are done, concurrent motions on their corridors.  ``prefetch`` (sequential
-    execution): the map of the next navigation or transport is built by the map worker while the current one
-    runs (:meth:`_prefetch`; the same maps either way, only sooner); ``map_sources`` counts where the maps
-    came from."""
+    execution): the maps of the next navigations and transports are built by the map worker while the current
+    one runs (:meth:`_prefetch`; the same maps either way, only sooner); ``map_sources`` counts where the
+    maps came from."""
 
     def __init__(self, scenario, ts, words, placement: Placement, couplings: Sequence[tuple[int, tuple[int, ...]]],
                  *, rest_speed: float = REST_SPEED, dock_tol: float = DOCK_TOL, goal_tol: float = GOAL_TOL,
