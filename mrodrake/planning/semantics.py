@@ -154,6 +154,17 @@ def _apply(mask: int, event: tuple[int, int]) -> int:
     return mask | (1 << bit) if sign > 0 else mask & ~(1 << bit)
 
 
+def _push_orders(stack: list, known: dict, after, ids, F, m: int, left: int, prefix: tuple) -> None:
+    """Push onto ``stack`` every extension of a partial order by one action still ``left`` (bit i: action i)
+    whose run (``after``, memoised in ``known``) has not died, the last action first so the first pops first."""
+    for i in range(len(ids) - 1, -1, -1):
+        if left >> i & 1:
+            hit = known.get((F, m, ids[i]))
+            F2, m2 = after(F, m, ids[i]) if hit is None else hit
+            if 0 not in F2:
+                stack.append((F2, m2, left & ~(1 << i), prefix + (i,)))
+
+
 def _record_common(F: frozenset, prefix: tuple[int, ...], out: dict[int, tuple[int, ...]]) -> None:
     """Record ``prefix`` (an order) for every NBA state that every member of the family F reaches."""
     common = -1
@@ -518,12 +529,7 @@ class ExecutedWords:
                 if left == 0:
                     _record_common(F, prefix, out)
                     continue
-                for i in range(n - 1, -1, -1):
-                    if left >> i & 1:
-                        hit = known.get((F, m, ids[i]))
-                        F2, m2 = after(F, m, ids[i]) if hit is None else hit
-                        if 0 not in F2:
-                            stack.append((F2, m2, left & ~(1 << i), prefix + (i,)))
+                _push_orders(stack, known, after, ids, F, m, left, prefix)
             return out
         budget = [self.max_orders, self.max_nodes]
 
@@ -672,12 +678,7 @@ class ExecutedWords:
                     out[q][d] = prefix
                     new ^= low
                 continue
-            for i in range(n - 1, -1, -1):
-                if left >> i & 1:
-                    hit = known.get((F, m, ids[i]))
-                    F2, m2 = after(F, m, ids[i]) if hit is None else hit
-                    if 0 not in F2:
-                        stack.append((F2, m2, left & ~(1 << i), prefix + (i,)))
+            _push_orders(stack, known, after, ids, F, m, left, prefix)
         return out
 
     def _search_chains(self, q: int, mask: int, chains: list[tuple[tuple[int, int], ...]]) -> dict[int, tuple]:
