@@ -154,6 +154,16 @@ def _apply(mask: int, event: tuple[int, int]) -> int:
     return mask | (1 << bit) if sign > 0 else mask & ~(1 << bit)
 
 
+def _spread(fam: dict, succ, images: set) -> None:
+    """Add ``images`` to the family of every node in ``succ`` (a node's first family is a copy)."""
+    for D2 in succ:
+        got = fam.get(D2)
+        if got is None:
+            fam[D2] = set(images)
+        else:
+            got.update(images)
+
+
 def _push_orders(stack: list, known: dict, after, ids, F, m: int, left: int, prefix: tuple) -> None:
     """Push onto ``stack`` every extension of a partial order by one action still ``left`` (bit i: action i)
     whose run (``after``, memoised in ``known``) has not died, the last action first so the first pops first."""
@@ -499,12 +509,7 @@ class ExecutedWords:
             for S in fam[D]:
                 x = known.get((S, letter))
                 images.add(delta(S, letter) if x is None else x)
-            for D2 in succ:
-                got = fam.get(D2)
-                if got is None:
-                    fam[D2] = set(images)
-                else:
-                    got.update(images)
+            _spread(fam, succ, images)
         out = (frozenset(fam[D]), letter)
         self._lattice[key] = out
         return out
@@ -634,12 +639,7 @@ class ExecutedWords:
                 if not succ:
                     break
                 images = {read(R, last) for R in fam[D]}
-                for D2 in succ:
-                    got = fam.get(D2)
-                    if got is None:
-                        fam[D2] = set(images)
-                    else:
-                        got.update(images)
+                _spread(fam, succ, images)
             images = fam[D]
         if len(images) > 1:
             col, Q = self._col, self.Q
