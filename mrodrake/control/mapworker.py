@@ -3,12 +3,12 @@ solved on another core while the current motion is simulated.
 
 A map is a function of its free-space polygon and the map options alone (:func:`~mrodrake.control.tasks.
 build_map`).  The worker (``python -m mrodrake.control.mapworker``, one per process that asks, started on the
-first request) builds it with the same code as the mission, BLAS single-threaded as in a mission and the
-compiled assembly on one thread (its result does not depend on the thread count), and sends it back pickled,
-which is exact.  A map taken from the worker is therefore the map the mission would have built itself: a
-request changes when a map is ready, never which map a motion gets.  The worker reads length-prefixed pickles
-on its standard input and writes its results on its standard output; it ignores Ctrl-C (the parent handles
-it) and ends when its input closes, i.e. with the process that started it.
+first request) builds it with the same code as the mission, BLAS single-threaded as in a mission (the
+compiled assembly's result does not depend on its thread count), and sends it back pickled, which is exact.
+A map taken from the worker is therefore the map the mission would have built itself: a request changes when
+a map is ready, never which map a motion gets.  The worker reads length-prefixed pickles on its standard
+input and writes its results on its standard output; it ignores Ctrl-C (the parent handles it) and ends when
+its input closes, i.e. with the process that started it.
 """
 
 from __future__ import annotations
@@ -129,10 +129,7 @@ def _serve() -> None:
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     from threadpoolctl import threadpool_limits
 
-    from mrodrake.control import pointworld
-
     threadpool_limits(limits=1, user_api="blas")
-    pointworld.ASSEMBLY_THREADS = 1
     stdin, stdout = sys.stdin.buffer, sys.stdout.buffer
     sys.stdout = sys.stderr  # nothing but results on the pipe
     while True:

@@ -336,18 +336,13 @@ def _kernel_values(x, y, vx, vy, tx, ty, L):
     return W
 
 
-#: Threads of the matrix assembly (None: one per core available to the process).
-ASSEMBLY_THREADS: int | None = None
-
-
 def _assemble(mx, my, vx, vy, tx, ty, L, col, M, M32):
     """M[i, col[l]] = W of link l at point i (the closed form of ``_kernel_values``) for every real link
     (col[l] ≥ 0), written to the float64 ``M`` and its float32 copy ``M32``.  Blocks of rows run on threads of
     their own (the compiled kernel releases the GIL; a pool per call, so a forked process can assemble too);
     every entry is computed on its own, so the result does not depend on the number of threads."""
     n = len(mx)
-    cores = ASSEMBLY_THREADS or (len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity")
-                                 else (os.cpu_count() or 1))
+    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
     workers = max(1, min(cores, n // 256))
     if workers == 1:
         _assemble_rows(0, n, mx, my, vx, vy, tx, ty, L, col, M, M32)
