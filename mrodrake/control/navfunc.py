@@ -22,20 +22,33 @@ _ORIGIN = np.zeros(2)
 
 
 def beta(x, tau: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """β(x), β'(x), β''(x) of eq. (8) with region of influence τ (x > 0; vectorised).
+    """β(x), β'(x), β''(x) of eq. (8) with region of influence τ (x > 0; vectorised over x and τ).
 
     C² at x = τ: P(1) = 1, P'(1) = P''(1) = 0.
     """
-    x = np.asarray(x, dtype=float)
-    s = np.minimum(x / tau, 1.0)
-    P = np.minimum(s * s * s * (10.0 + s * (-15.0 + 6.0 * s)), 1.0)  # P ≤ 1 on [0, 1]; guard rounding
+    x, t = np.broadcast_arrays(np.asarray(x, dtype=float), np.asarray(tau, dtype=float))
+    b, db, ddb = _beta_array(np.ascontiguousarray(x).ravel(), np.ascontiguousarray(t).ravel())
+    return b.reshape(x.shape), db.reshape(x.shape), ddb.reshape(x.shape)
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _beta_point(x, tau):
+    """β(x), β'(x), β''(x) of :func:`beta` at one x (the only implementation of eq. (8))."""
+    if not x < tau:
+        return 1.0, 0.0, 0.0
+    s = x / tau
+    P = min(s * s * s * (10.0 + s * (-15.0 + 6.0 * s)), 1.0)  # P ≤ 1 on [0, 1]; guard rounding
     dP = 30.0 * s * s * (s - 1.0) ** 2
     ddP = 60.0 * s * (2.0 * s - 1.0) * (s - 1.0)
-    b = 1.0 / P
-    db = -dP / (P * P) / tau
-    ddb = (2.0 * dP * dP / P - ddP) / (P * P) / (tau * tau)
-    inside = x < tau
-    return np.where(inside, b, 1.0), np.where(inside, db, 0.0), np.where(inside, ddb, 0.0)
+    return 1.0 / P, -dP / (P * P) / tau, (2.0 * dP * dP / P - ddP) / (P * P) / (tau * tau)
+
+
+@njit(cache=True, nogil=True)
+def _beta_array(x, tau):
+    b, db, ddb = np.empty(len(x)), np.empty(len(x)), np.empty(len(x))
+    for i in range(len(x)):
+        b[i], db[i], ddb[i] = _beta_point(x[i], tau[i])
+    return b, db, ddb
 
 
 def r_bar_max(obstacles: np.ndarray) -> float:
@@ -128,7 +141,7 @@ def phi_terms(chi: np.ndarray, goal: np.ndarray, bar: Barriers, k1: float,
 @njit(cache=True, nogil=True)
 def _phi_point(c0, c1, g0, g1, centers, rho2, sign, taus, cnorm, k1, k2):
     """(φ, ∂φ/∂χ_0, ∂φ/∂χ_1, ∂²φ/∂χ_0², ∂²φ/∂χ_0∂χ_1, ∂²φ/∂χ_1²) of :func:`phi_terms` at χ = (c0, c1), with
-    β of :func:`beta` per active barrier (grad d_ℓ = 2 s_ℓ (χ − c_ℓ), ∇²d_ℓ = 2 s_ℓ I)."""
+    β of :func:`_beta_point` per active barrier (grad d_ℓ = 2 s_ℓ (χ − c_ℓ), ∇²d_ℓ = 2 s_ℓ I)."""
     e0, e1 = c0 - g0, c1 - g1
     value = k1 * (e0 * e0 + e1 * e1)
     gx, gy = 2.0 * k1 * e0, 2.0 * k1 * e1
@@ -143,14 +156,9 @@ def _phi_point(c0, c1, g0, g1, centers, rho2, sign, taus, cnorm, k1, k2):
         scale = (norm + cnorm[k]) ** 2 + rho2[k]
         if d <= POLE_ULPS * _EPS * scale:
             return math.inf, math.nan, math.nan, math.nan, math.nan, math.nan
-        s = min(d / tau, 1.0)
-        P = min(s * s * s * (10.0 + s * (-15.0 + 6.0 * s)), 1.0)  # P ≤ 1 on [0, 1]; guard rounding
-        dP = 30.0 * s * s * (s - 1.0) ** 2
-        ddP = 60.0 * s * (2.0 * s - 1.0) * (s - 1.0)
-        db = -dP / (P * P) / tau
-        ddb = (2.0 * dP * dP / P - ddP) / (P * P) / (tau * tau)
+        b, db, ddb = _beta_point(d, tau)
         ax, ay = 2.0 * sign[k] * dx, 2.0 * sign[k] * dy
-        value += k2 * (1.0 / P - 1.0)
+        value += k2 * (b - 1.0)
         gx += k2 * db * ax
         gy += k2 * db * ay
         hxx += k2 * (2.0 * sign[k] * db + ddb * ax * ax)
