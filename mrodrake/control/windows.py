@@ -15,7 +15,9 @@ F ∩ B(x, :data:`WINDOW_RADIUS`) around the entity, whose holes cut by the wind
 outer boundary (H runs along them with arc length instead of being constant), toward the farthest point of the
 path inside the window (:func:`window_free_space`).  The same holds where the whole map puts the start or the
 goal beyond its circle barrier ρ₀: a dead end of the outer boundary that is narrow for the entity gets a sliver
-of the circle (arc length of a boundary hundreds of metres long), a window's boundary a larger share.
+of the circle (arc length of a boundary hundreds of metres long), a window's boundary a larger share, a smaller
+window a larger one still; a goal in such a pocket that no window around the entity resolves runs on a window
+around the goal (:func:`goal_window_free_space`).
 F ∩ B ⊂ F, so each window keeps the guarantees of the
 law on its own map (no collision, φ bounded); the motion moves on to the next window near each waypoint.
 """
@@ -54,6 +56,9 @@ RESOLUTION_FLOOR = 1e-8
 WINDOW_RADIUS = 12.0
 #: Distance (m) a window's waypoint keeps inside the window's rim.
 WINDOW_MARGIN = 1.5
+#: Factor between the radii of successive windows tried by :func:`window_free_space` and
+#: :func:`goal_window_free_space`.
+WINDOW_GROWTH = 1.25
 #: Distance (m) to its waypoint at which a windowed motion moves on to the next window.
 WINDOW_SWITCH = 5.0
 #: Grid step (m) and clearances to ∂F (m, tried in turn) of :func:`grid_path`; resampling step (m).
@@ -137,12 +142,56 @@ def resample(path, step: float = SAMPLE_STEP) -> np.ndarray:
     return np.column_stack([np.interp(s, cum, p[:, 0]), np.interp(s, cum, p[:, 1])])
 
 
+def goal_window_free_space(free: EntityFreeSpace, x, goal, growth: float = WINDOW_GROWTH,
+                           radius: float = WINDOW_RADIUS) -> tuple[EntityFreeSpace, PointWorldMap]:
+    """A window around the goal (its map puts the goal and ``x`` inside its circle barrier ρ₀, when neither the
+    map of the whole free space nor the window around ``x`` does): the component of ``free.polygon`` ∩ B(goal, ρ)
+    containing x and the goal, for ρ = |x − goal| + :data:`GRID_STEP` times 1, ``growth``, growth², ... up
+    to ``radius``, the first whose map puts both inside ρ₀; the smaller the window, the larger the share of
+    its outer boundary, and of the unit circle, that a pocket around the goal gets.  Raises ValueError without
+    one."""
+    x = np.asarray(x, dtype=float).reshape(2)
+    goal = np.asarray(goal, dtype=float).reshape(2)
+    rho = float(np.hypot(*(goal - x))) + GRID_STEP
+    pts = [Point(x), Point(goal)]
+    while rho <= radius:
+        part = free.polygon.intersection(Point(goal).buffer(rho, quad_segs=DISK_QUAD_SEGS))
+        parts = list(part.geoms) if isinstance(part, MultiPolygon) else [part]
+        comp = next((p for p in parts if isinstance(p, Polygon) and all(p.contains(q) for q in pts)), None)
+        if comp is not None:
+            comp = shapely.geometry.polygon.orient(comp, 1.0)
+            window = dataclasses.replace(free, polygon=comp, start=x, goal=goal,
+                                         hole_names=[[] for _ in comp.interiors])
+            pw = build_map(window)
+            if np.all(inside_circle(pw, [x, goal])):
+                return window, pw
+        rho *= growth
+    raise ValueError("goal window: no window around the goal maps the entity and the goal inside its circle barrier")
+
+
 def window_free_space(free: EntityFreeSpace, x, path, radius: float = WINDOW_RADIUS,
-                      margin: float = WINDOW_MARGIN) -> tuple[EntityFreeSpace, PointWorldMap]:
-    """The window around ``x`` (module docstring) and its map: the component of ``free.polygon`` ∩ B(x, radius)
+                      margin: float = WINDOW_MARGIN, growth: float = WINDOW_GROWTH
+                      ) -> tuple[EntityFreeSpace, PointWorldMap]:
+    """The window around ``x`` (module docstring) and its map: the component of ``free.polygon`` ∩ B(x, ρ)
     containing x, with x as start and, as goal, the farthest point of ``path`` (from x to the goal) before it
-    first leaves B(x, radius − margin) (the goal itself if it does not) that maps inside the map's circle
-    barrier (a point near a convex corner of the window can map outside it).  Raises ValueError without one."""
+    first leaves B(x, ρ − margin) (the goal itself if it does not) that maps inside the map's circle
+    barrier (a point near a convex corner of the window can map outside it).  ρ = ``radius``, else radius /
+    growth, radius / growth², ... down to 2 margin, the first whose map puts x and a waypoint inside its
+    circle barrier: the smaller the window, the larger the share of its outer boundary, and of the unit circle,
+    that a pocket around x gets (lab, a team leaving its goal between two parked robots and a wall:
+    ‖χ(x)‖ = 0.998 on the map of radius 12 m, 0.994 < ρ₀ = 0.995 on the map of radius 7 m).  Raises ValueError
+    without one."""
+    rho = float(radius)
+    while True:
+        try:
+            return _window(free, x, path, rho, margin)
+        except ValueError:
+            rho /= growth
+            if rho < 2.0 * margin:
+                raise
+
+
+def _window(free: EntityFreeSpace, x, path, radius: float, margin: float) -> tuple[EntityFreeSpace, PointWorldMap]:
     x = np.asarray(x, dtype=float).reshape(2)
     pts = resample(path, 0.5 * GRID_STEP)
     out = np.flatnonzero(np.linalg.norm(pts - x, axis=1) > radius - margin)

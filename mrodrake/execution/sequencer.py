@@ -44,6 +44,7 @@ from mrodrake.control.windows import (
     RESOLUTION_FLOOR,
     STALL_SPEED,
     WINDOW_SWITCH,
+    goal_window_free_space,
     grid_path,
     resolution,
     window_free_space,
@@ -767,9 +768,28 @@ class Sequencer:
         try:
             task = build_task(self.scenario, free, max(1, len(m.team)), label=f"{name} {m.kind.value}", pw_map=pw)
         except (UserError, ValueError) as exc:
+            windowed = self._goal_window(ed, X, m)
+            if windowed is not None:
+                return windowed
             raise _Failure(f"{m.kind.value} of {name}: {str(exc).splitlines()[0]}") from None
         ed.tasks[m.controller] = TaskCommand(task, m.episode)
         return replace(m, task=task, free=free, waypoint=None)
+
+    def _goal_window(self, ed: _Edit, X: np.ndarray, m: Motion) -> Motion | None:
+        """Where neither the map of the whole motion nor the window around the entity maps both the entity and its
+        goal inside the circle barrier (a goal in a pocket that is narrow for the entity, between parked entities
+        and a wall: lab, a team arriving next to two parked robots, ‖χ_d‖ = 0.99935 > ρ₀ = 0.99556 on both), the
+        law runs on the map of a window around the goal (:func:`~mrodrake.control.windows.goal_window_free_space`);
+        None without one."""
+        free = replace(m.world[0], start=X[m.entity, :2].copy()) if m.world else m.free
+        try:
+            window, pw = goal_window_free_space(free, free.start, m.goal)
+            task = build_task(self.scenario, window, max(1, len(m.team)),
+                              label=f"{self.entities[m.entity]} {m.kind.value} goal window", pw_map=pw)
+        except (UserError, ValueError):
+            return None
+        ed.tasks[m.controller] = TaskCommand(task, m.episode)
+        return replace(m, task=task, free=window, waypoint=tuple(map(float, window.goal)))
 
     def _window(self, ed: _Edit, x: np.ndarray, m: Motion, free) -> Motion | None:
         """The law on the map of the window around ``x`` toward its waypoint (None: no window)."""

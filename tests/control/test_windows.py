@@ -4,6 +4,7 @@ motion and its ideal flow leaves the aisle, while the flow on the whole map goes
 
 from __future__ import annotations
 
+import math
 from dataclasses import replace
 
 import numpy as np
@@ -12,7 +13,15 @@ import shapely
 
 from mrodrake.control.freespace import Disk, entity_free_space
 from mrodrake.control.tasks import build_map, build_task, inside_circle
-from mrodrake.control.windows import RESOLUTION, grid_path, resolution, window_free_space
+from mrodrake.control.windows import (
+    RESOLUTION,
+    WINDOW_GROWTH,
+    WINDOW_RADIUS,
+    goal_window_free_space,
+    grid_path,
+    resolution,
+    window_free_space,
+)
 from mrodrake.planning.generate import generate_scenario, load_map
 
 WAREHOUSE = load_map("warehouse")
@@ -86,3 +95,53 @@ def test_a_goal_at_the_end_of_a_narrow_corridor_runs_on_a_window_map():
     assert inside_circle(wpw, [x, goal]).all()
     end = _flow(build_task(sc, replace(window, start=x), pw_map=wpw), x, 600.0)
     assert np.linalg.norm(end - goal) < 0.5
+
+
+LAB_POCKET = dict(n=3, m=1, k=3, seed=502)  # generate_scenario arguments: p4 is 2 m wide, next to a wall
+
+
+def test_a_goal_in_a_pocket_between_parked_robots_runs_on_a_window_around_the_goal():
+    """Campaign mission gen_lab_n3_m1_k3_s502 (randomized), "transport o1 by r3 p2->p4": r1 and r2 are parked
+    in p4 and merge with the wall into the outer boundary, so the team's goal (covering radius 1.296 m) lies in
+    a pocket 0.03 m from the boundary.  It maps beyond the circle barrier of the whole map and of every window
+    around the team 2.1 m away; the mission failed there.  The map of a window around the goal puts both
+    inside, and its law reaches the goal."""
+    sc = generate_scenario(LAB_POCKET["n"], LAB_POCKET["m"], LAB_POCKET["k"], LAB_POCKET["seed"], map="lab")
+    x, goal = np.array([12.11510062, 7.81096361]), np.array([13.84387929, 9.03465719])
+    others = [Disk("r1", (12.793178204297014, 10.621201849753534), 0.5),
+              Disk("r2", (12.089160449026098, 9.758283615077858), 0.5)]
+    free = entity_free_space(sc, 1.2958871416512372, x, goal, "p2", "p4", others)
+    pw = build_map(free)
+    assert inside_circle(pw, [x])[0] and not inside_circle(pw, [goal])[0]
+    window, wpw = window_free_space(free, x, grid_path(free.polygon, x, goal))
+    assert not inside_circle(wpw, [goal])[0]
+
+    window, wpw = goal_window_free_space(free, x, goal)
+    assert window.polygon.difference(free.polygon).area < 1e-9
+    assert np.allclose(window.goal, goal) and inside_circle(wpw, [x, goal]).all()
+    end = _flow(build_task(sc, window, n_members=1, pw_map=wpw), x, 600.0)
+    assert np.linalg.norm(end - goal) < 0.1
+
+
+def test_a_start_in_a_pocket_runs_on_a_smaller_window():
+    """The same mission, "transport o1 by r2 p4->p1": the team starts at its previous goal in the pocket, now
+    between r1, r3 and the wall, 0.06 m from the boundary, beyond the circle barrier of the whole map and of
+    the 12 m window (‖χ‖ = 0.998); a window of 7 m or less puts it inside, toward a waypoint out of the
+    pocket."""
+    sc = generate_scenario(LAB_POCKET["n"], LAB_POCKET["m"], LAB_POCKET["k"], LAB_POCKET["seed"], map="lab")
+    x, goal = np.array([13.83002803, 8.99474179]), np.array([2.774286054275942, 2.594162521369889])
+    others = [Disk("r1", (12.793178204297014, 10.621201849753534), 0.5),
+              Disk("r3", (12.030324261022397, 9.782222975331505), 0.5)]
+    free = entity_free_space(sc, 1.310618144650329, x, goal, "p4", "p1", others)
+    assert not inside_circle(build_map(free), [x])[0]
+    path = grid_path(free.polygon, x, goal)
+    with pytest.raises(ValueError, match="outside the window map's circle barrier"):
+        window_free_space(free, x, path, growth=math.inf)  # the 12 m window only
+
+    window, wpw = window_free_space(free, x, path)
+    assert window.polygon.difference(free.polygon).area < 1e-9
+    reach = np.linalg.norm(np.asarray(window.polygon.exterior.coords) - x, axis=1).max()
+    assert reach <= WINDOW_RADIUS / WINDOW_GROWTH + 1e-9
+    assert inside_circle(wpw, [x, window.goal]).all()
+    end = _flow(build_task(sc, window, n_members=1, pw_map=wpw), x, 120.0)
+    assert np.linalg.norm(end - x) > 1.0 and shapely.contains_xy(window.polygon, end[0], end[1])
