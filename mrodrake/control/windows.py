@@ -68,11 +68,19 @@ SAMPLE_STEP = 0.5
 
 
 def resolution(pw_map, points) -> np.ndarray:
-    """σ_min(J_H(p)) × the diameter of the map's free space at each of ``points`` (n, 2)."""
+    """σ_min(J_H(p)) × the diameter of the map's free space at each of ``points`` (n, 2).
+
+    For a 2 × 2 J, σ_max² + σ_min² = ‖J‖_F² and σ_max σ_min = |det J|, so σ_min = |det J| / σ_max with
+    σ_max² = (‖J‖_F² + √(‖J‖_F⁴ − 4 det² J)) / 2 (no cancellation in either step)."""
     pts = np.asarray(points, dtype=float).reshape(-1, 2)
     minx, miny, maxx, maxy = pw_map.free_space.bounds
-    J = np.asarray(pw_map.jacobian(pts), dtype=float).reshape(-1, 2, 2)
-    return np.linalg.svd(J, compute_uv=False)[:, -1] * math.hypot(maxx - minx, maxy - miny)
+    J = np.asarray(pw_map.jacobian(pts[0] if len(pts) == 1 else pts), dtype=float).reshape(-1, 2, 2)
+    fro = np.einsum("nij,nij->n", J, J)
+    det = np.abs(J[:, 0, 0] * J[:, 1, 1] - J[:, 0, 1] * J[:, 1, 0])
+    s_max = np.sqrt(0.5 * (fro + np.sqrt(np.maximum(fro * fro - 4.0 * det * det, 0.0))))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        s_min = np.where(s_max > 0.0, det / s_max, 0.0)
+    return s_min * math.hypot(maxx - minx, maxy - miny)
 
 
 def grid_path(poly: Polygon, start, goal, step: float = GRID_STEP,

@@ -23,8 +23,8 @@ def add_subparser(subparsers) -> argparse.ArgumentParser:
                    help="STyLuS* sampling planner (default) or exact optimal search on the explicit product")
     p.add_argument("--seed", type=int, default=None, help="random seed (default: planning.seed)")
     p.add_argument("--iterations", type=int, default=None,
-                   help="STyLuS* tree iterations (default: planning.iterations; continues until a first "
-                   "plan if none was found by then)")
+                   help="STyLuS* tree iterations (default: planning.iterations; without a plan by then, the "
+                   "satisfiability decision runs; if it is undecided, STyLuS* samples longer before reporting unknown)")
     p.add_argument("--time-limit", type=float, default=None, metavar="S", help="STyLuS* wall-clock limit (s)")
     p.add_argument("-o", "--output", metavar="PLAN.json", help="write the plan as JSON")
     p.add_argument("--table", metavar="PLAN.csv", help="write the plan table as CSV")

@@ -145,3 +145,22 @@ def test_a_start_in_a_pocket_runs_on_a_smaller_window():
     assert inside_circle(wpw, [x, window.goal]).all()
     end = _flow(build_task(sc, window, n_members=1, pw_map=wpw), x, 120.0)
     assert np.linalg.norm(end - x) > 1.0 and shapely.contains_xy(window.polygon, end[0], end[1])
+
+
+def test_resolution_is_the_smallest_singular_value_of_the_jacobian():
+    """The closed form of σ_min(J_H) agrees with the SVD within its rounding (a few ulps of σ_max), at single
+    points and batches, including near the boundary where J_H is far from conformal-looking."""
+    from mrodrake.control.pointworld import PointWorldMap
+
+    free = shapely.Polygon([(0, 0), (10, 0), (10, 6), (0, 6)], [[(4, 2), (5, 2), (5, 3), (4, 3)]])
+    pw = PointWorldMap.build(free)
+    rng = np.random.default_rng(3)
+    pts = rng.uniform((0.01, 0.01), (9.99, 5.99), size=(400, 2))
+    pts = pts[shapely.contains_xy(free, pts[:, 0], pts[:, 1])]
+    diam = math.hypot(10.0, 6.0)
+    s = np.linalg.svd(pw.jacobian(pts), compute_uv=False)
+    tol = 1e-14 * s[:, 0] * diam
+    assert np.all(np.abs(resolution(pw, pts) - s[:, 1] * diam) <= tol)
+    for p in pts[:20]:
+        s1 = np.linalg.svd(pw.jacobian(p), compute_uv=False)
+        assert abs(resolution(pw, [p])[0] - s1[1] * diam) <= 1e-14 * s1[0] * diam
