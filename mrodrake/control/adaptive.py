@@ -66,8 +66,10 @@ from dataclasses import dataclass
 from typing import NamedTuple
 
 import numpy as np
+from numba import njit
 
-from mrodrake.control.navfunc import TAU_FRACTION, Barriers, desired_velocity, outside_free_set, phi_terms
+from mrodrake.control.navfunc import TAU_FRACTION, Barriers, phi_terms, velocity_point
+from mrodrake.control.treecode import tree_point
 
 _ORIGIN = np.zeros(2)
 
@@ -134,6 +136,7 @@ def saturate_velocity(v: np.ndarray, vdot: np.ndarray, v_max: float) -> tuple[np
     return np.array([v0, v1]), np.array([a0, a1])
 
 
+@njit(cache=True, nogil=True)
 def _saturate(v0: float, v1: float, a0: float, a1: float, v_max: float) -> tuple[float, float, float, float]:
     """:func:`saturate_velocity` on the components (σ(v), Dσ(v) v̇) of v = (v0, v1), v̇ = (a0, a1)."""
     if not math.isfinite(v_max):
@@ -143,6 +146,46 @@ def _saturate(v0: float, v1: float, a0: float, a1: float, v_max: float) -> tuple
     c = 1.0 / math.sqrt(q)
     dot = w * (v0 * a0 + v1 * a1) / q
     return c * v0, c * v1, c * (a0 - v0 * dot), c * (a1 - v1 * dot)
+
+
+_OUTSIDE, _DEGENERATE = 1, 2  # statuses of _law_values and _law_point besides 0 (the law is defined)
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _law_values(u, v, a, b, c, d, h000, h001, h100, h101, w0, w1, m_hat, alpha_hat, gd0, gd1, centers, rho2,
+                sign, taus, cnorm, k1, k2, k_phi, k_v, k_m, k_alpha, v_max, out):
+    """The law at one state from the map's values there (H = (u, v), J_H = [[a, b], [c, d]], Hessian entries as
+    in :func:`~mrodrake.control.navfunc.velocity_point`), ẋ = (w0, w1) and the estimates: eq. (9) with σ, eq. (10)
+    and eq. (11) on floats (the control law's hot path).  out = u (2), dm̂/dt, dα̂/dt, v_d (2), v̇_d (2), e_v (2),
+    det J_H; returns 0, or _OUTSIDE past a barrier's pole, or _DEGENERATE where v_d or v̇_d is not finite."""
+    vel = np.empty(8)
+    velocity_point(u, v, a, b, c, d, h000, h001, h100, h101, w0, w1, gd0, gd1, centers, rho2, sign, taus, cnorm,
+                   k1, k2, vel)
+    out[10] = vel[7]
+    if not math.isfinite(vel[0]):
+        return _OUTSIDE
+    g0, g1, v0, v1, a0, a1 = vel[1], vel[2], vel[3], vel[4], vel[5], vel[6]
+    if not (math.isfinite(v0) and math.isfinite(v1) and math.isfinite(a0) and math.isfinite(a1)):
+        return _DEGENERATE
+    v0, v1, a0, a1 = _saturate(v0, v1, a0, a1, v_max)
+    e0, e1 = w0 - v0, w1 - v1
+    damp = k_v + 1.5 * alpha_hat
+    out[0] = -k_phi * (a * g0 + c * g1) + m_hat * a0 - damp * e0
+    out[1] = -k_phi * (b * g0 + d * g1) + m_hat * a1 - damp * e1
+    out[2] = -k_m * (e0 * a0 + e1 * a1)
+    out[3] = k_alpha * (e0 * e0 + e1 * e1)
+    out[4], out[5], out[6], out[7], out[8], out[9] = v0, v1, a0, a1, e0, e1
+    return 0
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _law_point(x0, x1, w0, w1, m_hat, alpha_hat, vert, links, nodef, nodei, coef, params, gd0, gd1, centers, rho2,
+               sign, taus, cnorm, k1, k2, k_phi, k_v, k_m, k_alpha, v_max, out):
+    """:func:`_law_values` at x = (x0, x1) with the map's values from its treecode (:func:`tree_point`)."""
+    h = np.empty(10)
+    tree_point(x0, x1, True, vert, links, nodef, nodei, coef, params, h)
+    return _law_values(h[0], h[1], h[2], h[3], h[4], h[5], h[6], h[7], h[8], h[9], w0, w1, m_hat, alpha_hat, gd0,
+                       gd1, centers, rho2, sign, taus, cnorm, k1, k2, k_phi, k_v, k_m, k_alpha, v_max, out)
 
 
 def load_sharing(cf: Sequence[float] | int) -> np.ndarray:
@@ -321,29 +364,34 @@ class NavigationTask:
 
     def evaluate(self, x: np.ndarray, xdot: np.ndarray, m_hat: float, alpha_hat: float) -> ControlEval:
         """The entity's law u and the adaptation rates at state (x, ẋ) and estimates (m̂, α̂); a
-        :class:`ControlEval` with a ``fault`` where the law is undefined."""
-        g = self.gains
-        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-            v_raw, vdot_raw, J, grad, phi = desired_velocity(self.pw_map, self.nf, x, xdot)
-        if outside_free_set(phi):
+        :class:`ControlEval` with a ``fault`` where the law is undefined.  Computed by the compiled
+        :func:`_law_point` (on the map's treecode) or :func:`_law_values` (other maps)."""
+        x0, x1 = np.asarray(x, dtype=float).reshape(2).tolist()
+        w0, w1 = np.asarray(xdot, dtype=float).reshape(2).tolist()
+        out = np.empty(11)
+        if self._tree is not None:
+            status = _law_point(x0, x1, w0, w1, float(m_hat), float(alpha_hat), *self._tree, *self._consts, out)
+        else:
+            chi, J, Hs = self.pw_map.evaluate(np.array([x0, x1]))
+            h = [float(chi[0]), float(chi[1]), *J.ravel().tolist(), Hs[0, 0, 0], Hs[0, 0, 1], Hs[1, 0, 0], Hs[1, 0, 1]]
+            status = _law_values(*h, w0, w1, float(m_hat), float(alpha_hat), *self._consts, out)
+        if status == _OUTSIDE:
             return self._fault(x, xdot, "is outside the free set (past a barrier of the navigation function)")
-        v0, v1 = v_raw.tolist()
-        a0, a1 = vdot_raw.tolist()
-        if not (math.isfinite(v0) and math.isfinite(v1) and math.isfinite(a0) and math.isfinite(a1)):
+        if status == _DEGENERATE:
             return self._fault(x, xdot, f"is where the point-world map is degenerate "
-                                  f"(det J_H = {np.linalg.det(J):.3g}): the entity left the region the map resolves")
-        # σ, navigation_input and adaptation_rates on Python floats (the hot path)
-        v0, v1, a0, a1 = _saturate(v0, v1, a0, a1, self.v_max)
-        x0, x1 = np.asarray(xdot, dtype=float).tolist()
-        e0, e1 = x0 - v0, x1 - v1
-        (j00, j01), (j10, j11) = J.tolist()
-        g0, g1 = grad.tolist()
-        damp = g.k_v + 1.5 * alpha_hat
-        u = np.array([-g.k_phi * (j00 * g0 + j10 * g1) + m_hat * a0 - damp * e0,
-                      -g.k_phi * (j01 * g0 + j11 * g1) + m_hat * a1 - damp * e1])
-        dm = -g.k_m * (e0 * a0 + e1 * a1)
-        da = g.k_alpha * (e0 * e0 + e1 * e1)
-        return ControlEval(u, dm, da, np.array([v0, v1]), np.array([a0, a1]), np.array([e0, e1]))
+                                  f"(det J_H = {out[10]:.3g}): the entity left the region the map resolves")
+        return ControlEval(out[0:2], float(out[2]), float(out[3]), out[4:6], out[6:8], out[8:10])
+
+    def __post_init__(self):
+        g, nf = self.gains, self.nf
+        bar = nf._bar
+        gd0, gd1 = np.asarray(nf.goal, dtype=float).reshape(2).tolist()
+        consts = (gd0, gd1, bar.centers, bar.rho2, bar.sign, bar.taus, bar.cnorm, float(nf.k1), float(nf.k2),
+                  float(g.k_phi), float(g.k_v), float(g.k_m), float(g.k_alpha), float(self.v_max))
+        tree = getattr(self.pw_map, "tree", None)
+        object.__setattr__(self, "_consts", consts)
+        object.__setattr__(self, "_tree", None if tree is None else (tree.vert, tree.links, tree.nodef, tree.nodei,
+                                                                     tree.coef, tree.params))
 
     def _fault(self, x: np.ndarray, xdot: np.ndarray, why: str) -> ControlEval:
         where = f"x = ({x[0]:.4f}, {x[1]:.4f}) {why}"

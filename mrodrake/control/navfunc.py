@@ -223,34 +223,47 @@ def desired_velocity(pw_map, nf: NavigationFunction, x, xdot):
     """v_d = −J_H(x)⁻¹ ∇φ(H(x)) (eq. (9)) and its exact time derivative along ẋ.
 
     With χ̇ = J ẋ, J̇ = Σ_i ∂J/∂x_i ẋ_i (the Hessians of H) and J v_d = −∇φ:
-    v̇_d = −J⁻¹ (∇²φ χ̇ + J̇ v_d).  Returns (v_d, v̇_d, J_H, ∇φ, φ); φ = +∞ (NaN v_d) past a barrier's pole.
+    v̇_d = −J⁻¹ (∇²φ χ̇ + J̇ v_d).  Returns (v_d, v̇_d, J_H, ∇φ, φ); φ = +∞ (NaN v_d) past a barrier's pole,
+    NaN v_d and v̇_d where det J_H = 0.  The algebra is :func:`velocity_point`'s.
     """
     flat = getattr(pw_map, "evaluate_flat", None)
     if flat is not None:
         x0, x1 = np.asarray(x, dtype=float).tolist()
-        u, v, a, b, c, d, h000, h001, h100, h101 = flat(x0, x1)
-        h010, h011, h110, h111 = h001, -h000, h101, -h100
-        chi = np.array([u, v])
-        J = np.array([[a, b], [c, d]])
+        h = flat(x0, x1)
     else:
         chi, J, Hs = pw_map.evaluate(np.asarray(x, dtype=float))
         (a, b), (c, d) = J.tolist()
-        ((h000, h001), (h010, h011)), ((h100, h101), (h110, h111)) = Hs.tolist()
-    phi, g, G = nf.evaluate(chi)
-    # 2 x 2 algebra on Python floats (this is the control law's hot path; numpy's per-call overhead on
-    # arrays of two elements was ~1/3 of the law's cost beyond the map)
-    g0, g1 = g.tolist()
-    (G00, G01), (G10, G11) = G.tolist()
+        ((h000, h001), _), ((h100, h101), _) = Hs.tolist()
+        h = [float(chi[0]), float(chi[1]), a, b, c, d, h000, h001, h100, h101]
     w0, w1 = np.asarray(xdot, dtype=float).tolist()
+    bar = nf._bar
+    g0, g1 = np.asarray(nf.goal, dtype=float).reshape(2).tolist()
+    out = np.empty(8)
+    velocity_point(*h, w0, w1, g0, g1, bar.centers, bar.rho2, bar.sign, bar.taus, bar.cnorm, float(nf.k1),
+                   float(nf.k2), out)
+    J = np.array([[h[2], h[3]], [h[4], h[5]]])
+    return out[3:5].copy(), out[5:7].copy(), J, out[1:3].copy(), float(out[0])
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def velocity_point(u, v, a, b, c, d, h000, h001, h100, h101, w0, w1, g0, g1, centers, rho2, sign, taus, cnorm,
+                   k1, k2, out):
+    """eq. (9) and its time derivative at one point, from H = (u, v), J_H = [[a, b], [c, d]] and the Hessian
+    entries u_xx = h000, u_xy = h001, v_xx = h100, v_xy = h101 (u_yy = −u_xx, v_yy = −v_xx), ẋ = (w0, w1) and
+    the barriers of φ (:func:`_phi_point`, goal (g0, g1)): out = φ, ∇φ (2), v_d (2), v̇_d (2), det J_H."""
+    phi, p0, p1, G00, G01, G11 = _phi_point(u, v, g0, g1, centers, rho2, sign, taus, cnorm, k1, k2)
+    h010, h011, h110, h111 = h001, -h000, h101, -h100
     det = a * d - b * c
+    out[0], out[1], out[2], out[7] = phi, p0, p1, det
     if det == 0.0:  # degenerate map: NaN velocities (the law reports a fault)
-        nan = np.full(2, np.nan)
-        return nan, nan.copy(), J, g, phi
-    v0 = -(d * g0 - b * g1) / det
-    v1 = -(a * g1 - c * g0) / det
+        out[3] = out[4] = out[5] = out[6] = math.nan
+        return
+    v0 = -(d * p0 - b * p1) / det
+    v1 = -(a * p1 - c * p0) / det
     c0 = a * w0 + b * w1  # χ̇ = J ẋ
     c1 = c * w0 + d * w1
     r0 = G00 * c0 + G01 * c1 + (h000 * w0 + h001 * w1) * v0 + (h010 * w0 + h011 * w1) * v1  # ∇²φ χ̇ + J̇ v_d
-    r1 = G10 * c0 + G11 * c1 + (h100 * w0 + h101 * w1) * v0 + (h110 * w0 + h111 * w1) * v1
-    vdot = np.array([-(d * r0 - b * r1) / det, -(a * r1 - c * r0) / det])
-    return np.array([v0, v1]), vdot, J, g, phi
+    r1 = G01 * c0 + G11 * c1 + (h100 * w0 + h101 * w1) * v0 + (h110 * w0 + h111 * w1) * v1
+    out[3], out[4] = v0, v1
+    out[5] = -(d * r0 - b * r1) / det
+    out[6] = -(a * r1 - c * r0) / det
