@@ -19,8 +19,8 @@ A transition s → s' is a set of simultaneous actions, one per robot (all idle 
   Σ_{i∈A} ζ_i ≥ required power of j, and π_k, π_k' are connected for the team's covering radius r_A,j;
   a robot never switches objects in one step;
 * both states valid, and the step fits while it is executed one action at a time (:meth:`TransitionSystem.step_fits`:
-  where a region loses and gains entities in one step, everything that is in it at the start or at the end
-  fits together).
+  where a region loses and gains entities in one step, or a robot grasps or releases there, everything that is
+  in it at the start or at the end fits together).
 
 Labels: ``<robot>_<region>`` / ``<object>_<region>`` true where the entity is.  Cost
 χ(s, s') = Σ_i ‖p_{k_i} − p_{k'_i}‖ + c_grasp · (number of grasps and releases).
@@ -408,19 +408,21 @@ class TransitionSystem:
 
     def step_fits(self, s: State, t: State) -> bool:
         """Capacity of sequential execution: in every region that some entity leaves and some entity enters
-        in the step s → t, the units that are there at its start or at its end fit together (P_s), under the
-        grasps of s and under those of t.  The executor may then run the step's actions in any order without
-        overfilling a region (occupancy of a region during the step is a subset of that union)."""
+        in the step s → t, and in every region where a robot grasps or releases, the units that are there at
+        its start or at its end fit together (P_s), under the grasps of s and under those of t.  The executor
+        may then run the step's actions in any order without overfilling a region (occupancy of a region
+        during the step is a subset of that union; a grasp that runs before the others leave its region forms
+        its team among them)."""
         N, M = self.N, self.M
         dep, arr = set(), set()
         for e in range(N + M):
             if s[e] != t[e]:
                 dep.add(s[e])
                 arr.add(t[e])
-        both = dep & arr
-        if not both:
+        check = (dep & arr) | {x[i] for i in range(N) if s[N + M + i] != t[N + M + i] for x in (s, t)}
+        if not check:
             return True
-        return all(self._union_fits(k, s, t, g) for k in both for g in (s, t))
+        return all(self._union_fits(k, s, t, g) for k in check for g in (s, t))
 
     def _union_fits(self, k: int, s: State, t: State, grasp_state: State) -> bool:
         N, M = self.N, self.M
@@ -467,9 +469,10 @@ class TransitionSystem:
         if len(src) == 0:
             return ok
         here, grasps, free = self._region_masks(S)
+        held = self._grasp_changes(S[src], S[dst])
         for k in range(K):
             pa, pb = here[k][src], here[k][dst]
-            rows = np.flatnonzero(((pa & ~pb) != 0) & ((pb & ~pa) != 0))
+            rows = np.flatnonzero((((pa & ~pb) != 0) & ((pb & ~pa) != 0)) | (((pa | pb) & held) != 0))
             if len(rows) == 0:
                 continue
             union = pa[rows] | pb[rows]
@@ -486,12 +489,13 @@ class TransitionSystem:
         if len(A) == 0:
             return ok
         here, grasps, free = self._region_masks(A)
+        held = self._grasp_changes(A, np.asarray(s, dtype=A.dtype)[None, :])
         g_s = sum((s[n + i] + 1) * (M + 1) ** i for i in range(N))
         f_s = sum(1 << i for i in range(N) if s[n + i] < 0) | (((1 << M) - 1) << N)
         for k in range(self.K):
             h = sum(1 << e for e in range(n) if s[e] == k)
             pa = here[k]
-            rows = np.flatnonzero(((pa & ~h) != 0) & ((pa | h) != pa))
+            rows = np.flatnonzero((((pa & ~h) != 0) & ((pa | h) != pa)) | (((pa | h) & held) != 0))
             if len(rows) == 0:
                 continue
             union = pa[rows] | h
@@ -499,6 +503,14 @@ class TransitionSystem:
             fit &= self._masks_fit(k, np.full(len(rows), g_s, dtype=np.int64), union & f_s)
             ok[rows[~fit]] = False
         return ok
+
+    def _grasp_changes(self, A: np.ndarray, B: np.ndarray) -> np.ndarray:
+        """Per step A[r] → B[r] (B may be one row), the robots that grasp or release as a bit mask (robot i:
+        bit i), in the dtype of :meth:`_region_masks`' masks."""
+        N, n = self.N, self.N + self.M
+        dtype = np.int16 if n < 16 else np.int32 if n < 32 else np.int64
+        pow_r = (np.int64(1) << np.arange(N, dtype=np.int64)).astype(dtype)
+        return ((A[:, n:] != B[:, n:]) @ pow_r).astype(dtype)
 
     def _masks_apply(self) -> bool:
         """Do (grasp vector, entity mask) codes fit in int64 (else the checks run state by state)?"""

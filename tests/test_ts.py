@@ -15,6 +15,7 @@ from hypothesis import strategies as st
 from mrodrake.errors import UserError
 from mrodrake.geometry import grasp_layout
 from mrodrake.packing import entities_fit, verify_packing
+from mrodrake.planning.generate import generate_scenario
 from mrodrake.scenario import load_scenario, scenario_from_dict
 from mrodrake.ts import Grasp, Navigate, Release, TransitionSystem, Transport
 
@@ -85,13 +86,14 @@ def oracle_transition(ts: TransitionSystem, s, t) -> bool:
 
 
 def oracle_step_fits(ts: TransitionSystem, s, t) -> bool:
-    """Sequential execution: where a region loses and gains entities in one step, all its entities of the
-    start and of the end fit together, with the teams of s and with those of t."""
+    """Sequential execution: where a region loses and gains entities in one step, or a robot grasps or releases
+    there, all its entities of the start and of the end fit together, with the teams of s and with those of t."""
     N, M, sc = ts.N, ts.M, ts.scenario
     for k in range(ts.K):
         leaves = any(s[e] == k != t[e] for e in range(N + M))
         enters = any(t[e] == k != s[e] for e in range(N + M))
-        if not (leaves and enters):
+        holds = any(k in (s[i], t[i]) and s[N + M + i] != t[N + M + i] for i in range(N))
+        if not (leaves and enters) and not holds:
             continue
         for G in (s[N + M:], t[N + M:]):
             radii = [sc.robots[i].radius for i in range(N) if k in (s[i], t[i]) and G[i] < 0]
@@ -443,3 +445,25 @@ def test_batched_build_matches_one_state_at_a_time(params):
     want = [ts.step_fits(a, b) for a, b in pairs]
     assert ts.steps_fit(np.array([a for a, _ in pairs]), np.array([b for _, b in pairs])).tolist() == want
     assert [oracle_step_fits(ts, a, b) for a, b in pairs] == want
+
+
+def test_a_grasp_among_robots_about_to_leave_must_fit_with_them():
+    """Generated lab task n3 m1 k3 seed 802: r1, r2, r3 and o1 start in p2 (radius 1.5 m).  In one step that
+    grasps o1 by r2 while r1 and r3 leave for p4, the grasp runs first and forms the team (covering radius
+    1.32 m) next to r1 and r3, which do not fit with it; placement rejected every such plan.  That step is no
+    TS transition in either direction, whichever check decides it; leaving first and then grasping is."""
+    sc = generate_scenario(3, 1, 3, 802, map="lab")
+    ts = TransitionSystem(sc)
+    p2, p4 = ts.region_names.index("p2"), ts.region_names.index("p4")
+    s = (p2, p2, p2, p2, -1, -1, -1)
+    t = (p4, p2, p4, p2, -1, 0, -1)
+    mid = (p4, p2, p4, p2, -1, -1, -1)
+    assert ts.is_valid(s) and ts.is_valid(t) and ts.is_valid(mid)
+    for a, b in ((s, t), (t, s)):
+        assert not ts.step_fits(a, b) and not oracle_step_fits(ts, a, b)
+        assert not ts.steps_fit(np.array([a]), np.array(b))[0]
+        assert not ts.steps_fit(np.array([a]), np.array([b]))[0]
+        assert ts.check_transition(a, b) is not None
+    assert t not in set(ts.successor_states(s))
+    assert ts.step_fits(s, mid) and ts.step_fits(mid, t) and ts.check_transition(s, mid) is None
+    assert ts.check_transition(mid, t) is None
