@@ -37,7 +37,12 @@ def classify(stage: str, message: str, default: str) -> str:
     return default
 
 
-def first_line(text: str, limit: int = 300) -> str:
-    """The first line of ``text``, cut to ``limit`` characters."""
+#: Longest failure message a campaign row keeps (an unsatisfiability verdict with its blocked passages runs to
+#: several hundred characters; the reason comes last).
+MESSAGE_LIMIT = 2000
+
+
+def first_line(text: str, limit: int = MESSAGE_LIMIT) -> str:
+    """The first line of ``text``, cut to ``limit`` characters (marked "...")."""
     line = (str(text).strip().splitlines() or [""])[0]
     return line if len(line) <= limit else line[: limit - 3] + "..."
