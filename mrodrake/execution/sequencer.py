@@ -755,7 +755,9 @@ class Sequencer:
         of 0 never windows).  A goal deep in a dead end that is narrow for the entity maps next to the unit
         circle, since the outer boundary runs once around it by arc length and the dead end gets a sliver of
         it (corridor map, a team's goal at the corridor's end: ‖χ‖ = 0.99887 > ρ₀ = 0.99523); on a window,
-        whose boundary is tens of metres instead of hundreds, the same dead end gets a larger share."""
+        whose boundary is tens of metres instead of hundreds, the same dead end gets a larger share.  Where no
+        task can be built on the map of the whole motion either, the law runs on the window around the goal if
+        there is one, else the motion fails."""
         free, pw = m.world
         x = X[m.entity, :2].copy()
         free = replace(free, start=x)
@@ -768,35 +770,27 @@ class Sequencer:
         try:
             task = build_task(self.scenario, free, max(1, len(m.team)), label=f"{name} {m.kind.value}", pw_map=pw)
         except (UserError, ValueError) as exc:
-            windowed = self._goal_window(ed, X, m)
+            windowed = self._window(ed, x, m, free, around_goal=True)
             if windowed is not None:
                 return windowed
             raise _Failure(f"{m.kind.value} of {name}: {str(exc).splitlines()[0]}") from None
         ed.tasks[m.controller] = TaskCommand(task, m.episode)
         return replace(m, task=task, free=free, waypoint=None)
 
-    def _goal_window(self, ed: _Edit, X: np.ndarray, m: Motion) -> Motion | None:
-        """Where neither the map of the whole motion nor the window around the entity maps both the entity and its
-        goal inside the circle barrier (a goal in a pocket that is narrow for the entity, between parked entities
-        and a wall: lab, a team arriving next to two parked robots, ‖χ_d‖ = 0.99935 > ρ₀ = 0.99556 on both), the
-        law runs on the map of a window around the goal (:func:`~mrodrake.control.windows.goal_window_free_space`);
-        None without one."""
-        free = replace(m.world[0], start=X[m.entity, :2].copy()) if m.world else m.free
+    def _window(self, ed: _Edit, x: np.ndarray, m: Motion, free, around_goal: bool = False) -> Motion | None:
+        """The law on the map of the window around ``x`` toward its waypoint, or (``around_goal``) on the map of
+        the window around the goal (:func:`~mrodrake.control.windows.goal_window_free_space`: a goal in a pocket
+        that is narrow for the entity, between parked entities and a wall, which neither the map of the whole
+        motion nor any window around the entity maps inside its circle barrier; lab, a team arriving next to two
+        parked robots: ‖χ_d‖ = 0.99935 > ρ₀ = 0.99556); None without a window."""
         try:
-            window, pw = goal_window_free_space(free, free.start, m.goal)
+            if around_goal:
+                window, pw = goal_window_free_space(free, x, m.goal)
+            else:
+                window, pw = window_free_space(free, x, grid_path(free.polygon, x, m.goal))
             task = build_task(self.scenario, window, max(1, len(m.team)),
-                              label=f"{self.entities[m.entity]} {m.kind.value} goal window", pw_map=pw)
-        except (UserError, ValueError):
-            return None
-        ed.tasks[m.controller] = TaskCommand(task, m.episode)
-        return replace(m, task=task, free=window, waypoint=tuple(map(float, window.goal)))
-
-    def _window(self, ed: _Edit, x: np.ndarray, m: Motion, free) -> Motion | None:
-        """The law on the map of the window around ``x`` toward its waypoint (None: no window)."""
-        try:
-            window, pw = window_free_space(free, x, grid_path(free.polygon, x, m.goal))
-            task = build_task(self.scenario, window, max(1, len(m.team)),
-                              label=f"{self.entities[m.entity]} {m.kind.value} window", pw_map=pw)
+                              label=f"{self.entities[m.entity]} {m.kind.value} {'goal ' * around_goal}window",
+                              pw_map=pw)
         except (UserError, ValueError):
             return None
         ed.tasks[m.controller] = TaskCommand(task, m.episode)
