@@ -31,7 +31,7 @@ import numpy as np
 import shapely
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import dijkstra
-from shapely.geometry import MultiPolygon, Point, Polygon
+from shapely.geometry import LineString, MultiPolygon, Point, Polygon
 
 from mrodrake.control.freespace import EntityFreeSpace
 from mrodrake.control.pointworld import PointWorldMap
@@ -87,20 +87,34 @@ def grid_path(poly: Polygon, start, goal, step: float = GRID_STEP,
               clearances: tuple[float, ...] = GRID_CLEARANCES) -> np.ndarray:
     """A shortest 8-connected grid path (spacing ``step``) from ``start`` to ``goal`` through the points of
     ``poly`` at least the first of ``clearances`` from its boundary that connects them, start and goal
-    included: waypoints (k, 2).  Raises ValueError if the grid does not connect them."""
+    included: waypoints (k, 2).  The start and the goal join the grid at the nearest node that a straight
+    segment inside ``poly`` reaches (within ``clearance`` + 2 steps; else the next clearance is tried), so that
+    every leg of the path lies in ``poly``.  Raises ValueError if the grid does not connect them."""
     s = np.asarray(start, dtype=float).reshape(2)
     g = np.asarray(goal, dtype=float).reshape(2)
+    shapely.prepare(poly)
     for clear in clearances:
         inner = poly.buffer(-clear) if clear > 0.0 else poly
         if inner.is_empty:
             continue
-        path = _grid_path(inner, s, g, step)
+        path = _grid_path(poly, inner, s, g, step, clear + 2.0 * step)
         if path is not None:
             return path
     raise ValueError("grid path: the grid does not connect the start and the goal")
 
 
-def _grid_path(inner, s: np.ndarray, g: np.ndarray, step: float) -> np.ndarray | None:
+def _entry(poly, nodes: np.ndarray, p: np.ndarray, reach: float) -> int | None:
+    """The nearest of ``nodes`` within ``reach`` of p that a straight segment inside ``poly`` joins to p."""
+    d = np.linalg.norm(nodes - p, axis=1)
+    for k in np.argsort(d, kind="stable"):
+        if d[k] > reach:
+            return None
+        if poly.covers(LineString([p, nodes[k]])):
+            return int(k)
+    return None
+
+
+def _grid_path(poly, inner, s: np.ndarray, g: np.ndarray, step: float, reach: float) -> np.ndarray | None:
     minx, miny, maxx, maxy = inner.bounds
     xs = np.arange(minx, maxx + step, step)
     ys = np.arange(miny, maxy + step, step)
@@ -126,8 +140,9 @@ def _grid_path(inner, s: np.ndarray, g: np.ndarray, step: float) -> np.ndarray |
         w.append(np.full(int(keep.sum()), step * math.hypot(di, dj)))
     rows, cols, w = np.concatenate(rows), np.concatenate(cols), np.concatenate(w)
     graph = coo_matrix((w, (rows, cols)), shape=(len(nodes), len(nodes))).tocsr()
-    i_s = int(np.argmin(np.linalg.norm(nodes - s, axis=1)))
-    i_g = int(np.argmin(np.linalg.norm(nodes - g, axis=1)))
+    i_s, i_g = _entry(poly, nodes, s, reach), _entry(poly, nodes, g, reach)
+    if i_s is None or i_g is None:
+        return None
     dist, pred = dijkstra(graph, directed=False, indices=i_g, return_predecessors=True)
     if not np.isfinite(dist[i_s]):
         return None

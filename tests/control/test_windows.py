@@ -164,3 +164,25 @@ def test_resolution_is_the_smallest_singular_value_of_the_jacobian():
     for p in pts[:20]:
         s1 = np.linalg.svd(pw.jacobian(p), compute_uv=False)
         assert abs(resolution(pw, [p])[0] - s1[1] * diam) <= 1e-14 * s1[0] * diam
+
+
+def test_every_leg_of_a_grid_path_lies_in_the_free_space():
+    """Campaign mission gen_warehouse_n3_m1_k4_s902 (randomized), "transport o1 by r1 p5->p3": the team
+    (covering radius 1.99 m) came to rest 0.12 m from ∂F, where the grid of points 1 m inside F has no node
+    nearby; the path joined the nearest node, 16 m away behind a shelf row, by a straight leg through it.  The
+    windows steered toward waypoints on that leg, and the team chattered against ∂F (RTF 4) until the time
+    limit.  Every leg now lies in F, the path follows the aisle, and the window around the team resolves it."""
+    sc = generate_scenario(3, 1, 4, 902, map=WAREHOUSE)
+    x, goal = np.array([31.226076, 24.610661]), np.array([49.9751819579182, 3.989370089797309])
+    others = [Disk("r2", (31.65932344, 3.970961822), 0.75), Disk("r3", (6.580624014, 37.42265786), 0.75)]
+    free = entity_free_space(sc, 1.99, x, goal, "p5", "p3", others)
+    assert resolution(build_map(free), [x])[0] < 1e-6 * RESOLUTION
+    path = grid_path(free.polygon, x, goal)
+    assert np.allclose(path[0], x) and np.allclose(path[-1], goal)
+    legs = [shapely.LineString([a, b]) for a, b in zip(path[:-1], path[1:])]
+    assert all(free.polygon.buffer(1e-9).covers(leg) for leg in legs)
+    assert np.linalg.norm(path[1] - x) < 1.0
+    window, wpw = window_free_space(free, x, path)
+    assert inside_circle(wpw, [x, window.goal]).all() and resolution(wpw, [x]).min() >= RESOLUTION
+    end = _flow(build_task(sc, window, pw_map=wpw), x, 60.0)
+    assert end[0] > x[0] + 3.0 and shapely.contains_xy(free.polygon, end[0], end[1])
