@@ -56,6 +56,9 @@ State = tuple
 _MASK_BITS = 40
 #: Largest code table the vectorised checks allocate densely (else they sort the codes).
 _DENSE_CODES = 1 << 22
+#: Up to this many steps to one state, :meth:`TransitionSystem.steps_fit` tests them one by one (cheaper than the
+#: vectorised test's fixed cost).
+_FEW_STEPS = 48
 #: Largest state-code space :meth:`TransitionSystem.build` indexes with a dense array (else sorted codes).
 _DENSE_INDEX = 1 << 24
 
@@ -441,9 +444,12 @@ class TransitionSystem:
 
     def steps_fit(self, A: np.ndarray, B: np.ndarray) -> np.ndarray:
         """:meth:`step_fits` of the steps A[r] → B[r] (rows of state arrays; B may be one state), vectorised
-        (:meth:`steps_fit_index`)."""
+        (:meth:`steps_fit_index`); a few steps to one state are tested one by one."""
         A = np.asarray(A)
         B = np.asarray(B)
+        if B.ndim == 1 and len(A) <= _FEW_STEPS:
+            t = B.tolist()
+            return np.array([self.step_fits(a, t) for a in A.reshape(-1, 2 * self.N + self.M).tolist()], dtype=bool)
         if B.ndim == 1 and self._masks_apply():
             return self._steps_fit_one(A.reshape(-1, 2 * self.N + self.M), [int(x) for x in B])
         if B.ndim == 1:
