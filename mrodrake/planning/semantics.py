@@ -364,6 +364,7 @@ class ExecutedWords:
         self._col = sum(1 << (self.Q * q) for q in range(self.Q))  # bit 0 of every row of a relation
         self._identity = sum(1 << (self.Q * q + q) for q in range(self.Q))
         self._columns: dict[int, tuple[tuple[int, int], ...]] = {}
+        self._reads: dict[tuple[int, int], int] = {}
         self._joint: dict[tuple, tuple[tuple[int, ...], int]] = {}
 
     # ------------------------------------------------------------------------------------ NBA on subsets
@@ -606,12 +607,17 @@ class ExecutedWords:
         return cols
 
     def _read(self, R: int, letter: int) -> int:
-        """The relation R followed by reading ``letter``: column j of R spread onto the row δ(j, letter)."""
-        out, col = 0, self._col
-        for j, m in self._letter_columns(letter):
-            c = R >> j & col
-            if c:
-                out |= c * m
+        """The relation R followed by reading ``letter``: column j of R spread onto the row δ(j, letter)
+        (cached)."""
+        key = (R, letter)
+        out = self._reads.get(key)
+        if out is None:
+            out, col = 0, self._col
+            for j, m in self._letter_columns(letter):
+                c = R >> j & col
+                if c:
+                    out |= c * m
+            self._reads[key] = out
         return out
 
     def _after_all(self, F: tuple[int, ...], mask: int, cid: int) -> tuple[tuple[int, ...], int]:

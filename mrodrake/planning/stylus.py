@@ -93,6 +93,9 @@ class _Transitions:
         self.gc = ts.grasp_cost
         self._robots: dict[tuple[int, int, int], np.ndarray] = {}
         self._objects: dict[tuple, np.ndarray] = {}
+        self._state_tables: dict[State, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
+        self._object_offsets = np.arange(self.M, dtype=np.int64) * ts.K
+        self._robot_offsets = np.arange(self.N, dtype=np.int64) * (ts.K * (self.M + 1) * 2)
 
     def mask(self, X: np.ndarray, s) -> np.ndarray:
         """``ok[r]``: is ``X[r] → s`` a TS transition?  Rows of X and s are valid states.
@@ -121,22 +124,29 @@ class _Transitions:
                 ok[rows] = self.ts.steps_fit(X[rows], s)
             return ok
         s = tuple(int(x) for x in np.asarray(s).ravel())
+        U, T, gs = self._tables(s)
         XR, XO, XG = X[:, :N], X[:, N : N + M], X[:, N + M :]
-        ok = np.ones(n, dtype=bool)
-        for j in range(M):
-            ok &= self._object_table(j, s)[XO[:, j]]
+        ok = U[XO + self._object_offsets].all(axis=1)
         moved = np.zeros((n, M + 1), dtype=np.int64)  # last column: no object (grasp -1)
         moved[:, :M] = XO != np.array(s[N : N + M])
-        rows = np.arange(n)
-        for i in range(N):
-            g = s[N + M + i]
-            xg = XG[:, i]
-            flag = moved[:, g] if g >= 0 else moved[rows, xg]
-            ok &= self._robot_table(i, s[i], g)[(XR[:, i] * (M + 1) + (xg + 1)) * 2 + flag]
+        cols = np.where(gs >= 0, gs, XG)  # the object in question per robot (−1: the last column)
+        flag = moved[np.arange(n)[:, None], cols]
+        ok &= T[(XR * (M + 1) + (XG + 1)) * 2 + flag + self._robot_offsets].all(axis=1)
         rows = np.flatnonzero(ok)
         if len(rows):
             ok[rows] = self.ts.steps_fit(X[rows], s)
         return ok
+
+    def _tables(self, s: State) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The object tables (:meth:`_object_table`) and robot tables (:meth:`_robot_table`) of s, each kind
+        concatenated (object j at offset j·K, robot i at offset i·K·(M + 1)·2), and s's grasps (cached)."""
+        hit = self._state_tables.get(s)
+        if hit is None:
+            N, M = self.N, self.M
+            U = np.concatenate([self._object_table(j, s) for j in range(M)])
+            T = np.concatenate([self._robot_table(i, s[i], s[N + M + i]) for i in range(N)])
+            hit = self._state_tables[s] = (U, T, np.array(s[N + M :], dtype=np.int64))
+        return hit
 
     def _robot_table(self, i: int, r: int, g: int) -> np.ndarray:
         """Robot i's rules for steps between s (robot in region r, grasping g) and any state: a table over
