@@ -230,13 +230,17 @@ class TransitionSystem:
         """Why a region change of s → t cannot be travelled (None when every one can)."""
         for a in self.actions(s, t):
             if isinstance(a, Navigate):
-                r, who = self.robot_radius[a.robot], f"robot {self.robot_names[a.robot]}"
+                r = self.robot_radius[a.robot]
             elif isinstance(a, Transport):
                 r = self.covering_radius(a.obj, a.team)
-                who = f"object {self.object_names[a.obj]} with team {'+'.join(self.robot_names[i] for i in a.team)}"
             else:
                 continue
             if not self.connected(r, a.src, a.dst):
+                if isinstance(a, Navigate):
+                    who = f"robot {self.robot_names[a.robot]}"
+                else:
+                    who = (f"object {self.object_names[a.obj]} with team "
+                           f"{'+'.join(self.robot_names[i] for i in a.team)}")
                 return (f"{who} (radius {r:.2f} m) cannot travel from {self.region_names[a.src]} to "
                         f"{self.region_names[a.dst]}: {_no_passage(self.margin)}")
         return None

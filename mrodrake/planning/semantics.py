@@ -345,9 +345,11 @@ class ExecutedWords:
         self._lattice: dict[tuple, tuple[frozenset, int]] = {}
         self._cross_ids: dict[tuple, int] = {}
         self._lattices: list[list[tuple[int, int, int, tuple[int, ...]]]] = []
+        self._crosses: list[tuple[Crossing, ...]] = []  # cross id -> crossings
         self._chains: list[tuple[tuple[int, int], ...] | None] = []  # lattices with one interleaving: letters
         self._step_ids: dict[tuple[int, tuple], int] = {}  # (mask, signature) -> step id
         self._step_keys: list[tuple[int, tuple]] = []  # step id -> (mask, signature)
+        self._step_cids: list[tuple[int, ...]] = []  # step id -> cross ids of the signature
         self._step_orders: list[list[dict[int, tuple[int, ...]] | None]] = []  # step id -> per q: q' -> order
         self._row_at = np.full(64 * self.Q, -1, dtype=np.int64)  # sid·Q + q -> row of _row_store (-1: not yet)
         self._row_store = np.zeros((64, self.Q), dtype=bool)
@@ -360,10 +362,11 @@ class ExecutedWords:
         self._keys: dict[tuple[State, State], tuple[int, tuple, tuple[Action, ...]]] = {}
         self._sigs: dict[tuple[State, State], tuple[int, tuple]] = {}
         self._move_cross: dict[tuple, tuple[Crossing, ...]] = {}
+        self._move_ids: dict[tuple, int] = {}
         self._acc = sum(1 << f for f in nba.accepting)
         self._col = sum(1 << (self.Q * q) for q in range(self.Q))  # bit 0 of every row of a relation
         self._identity = sum(1 << (self.Q * q + q) for q in range(self.Q))
-        self._columns: dict[int, tuple[tuple[int, int], ...]] = {}
+        self._columns: dict[int, tuple[tuple[int, ...], tuple[int, ...]]] = {}
         self._reads: dict[tuple[int, int], int] = {}
         self._joint: dict[tuple, tuple[tuple[int, ...], int]] = {}
 
@@ -415,6 +418,17 @@ class ExecutedWords:
         hit = self._sigs.get((s, t))
         if hit is not None:
             return hit
+        sig = []
+        for m in self._moves(s, t):
+            c = self._move_crossings(m)
+            if c:
+                sig.append(c)
+        out = self._sigs[(s, t)] = (self.ts.label_mask(s) & self.relevant, tuple(sig))
+        return out
+
+    def _moves(self, s: State, t: State) -> list[tuple]:
+        """The region-changing actions of s → t as plain tuples, in the order of
+        :meth:`~mrodrake.ts.TransitionSystem.actions` (transports, then navigations)."""
         N, M = self.ts.N, self.ts.M
         moves = []
         for j in range(M):
@@ -424,16 +438,23 @@ class ExecutedWords:
         for i in range(N):
             if s[N + M + i] < 0 and t[N + M + i] < 0 and s[i] != t[i]:
                 moves.append(("N", i, s[i], t[i]))
-        sig = []
-        for m in moves:
-            c = self._move_cross.get(m)
-            if c is None:
-                a = Transport(m[1], m[2], m[3], m[4]) if m[0] == "T" else Navigate(m[1], m[2], m[3])
-                c = self._move_cross[m] = self.crossings(a)
-            if c:
-                sig.append(c)
-        out = self._sigs[(s, t)] = (self.ts.label_mask(s) & self.relevant, tuple(sig))
-        return out
+        return moves
+
+    def _move_crossings(self, m: tuple) -> tuple[Crossing, ...]:
+        """:meth:`crossings` of a move of :meth:`_moves` (cached)."""
+        c = self._move_cross.get(m)
+        if c is None:
+            a = Transport(m[1], m[2], m[3], m[4]) if m[0] == "T" else Navigate(m[1], m[2], m[3])
+            c = self._move_cross[m] = self.crossings(a)
+        return c
+
+    def _move_id(self, m: tuple) -> int:
+        """:meth:`_cross_id` of a move's crossings, −1 when AP_φ sees none of them (cached)."""
+        x = self._move_ids.get(m)
+        if x is None:
+            c = self._move_crossings(m)
+            x = self._move_ids[m] = self._cross_id(c) if c else -1
+        return x
 
     def _cross_id(self, cross: tuple) -> int:
         """A small integer naming one action's crossings, with its lattice precomputed: per reachable downset D
@@ -460,6 +481,7 @@ class ExecutedWords:
                 nodes.append((D, ~clear, put, tuple(succ)))
             cid = self._cross_ids[cross] = len(self._lattices)
             self._lattices.append(nodes)
+            self._crosses.append(cross)
             chain = all(len(succ) <= 1 for *_, succ in nodes)
             self._chains.append(tuple((keep, put) for _, keep, put, _ in nodes) if chain else None)
         return cid
@@ -515,15 +537,16 @@ class ExecutedWords:
         self._lattice[key] = out
         return out
 
-    def _search(self, q: int, mask: int, sig: tuple) -> dict[int, tuple[int, ...]]:
+    def _search(self, q: int, mask: int, sig: tuple, ids: Sequence[int] | None = None) -> dict[int, tuple[int, ...]]:
         """q' -> the first order of the visible actions (lexicographic over their canonical indices,
         canonical order first) that reaches q' from q for every interleaving.  At most :attr:`max_orders`
         complete orders are tried (all of them up to four visible actions) and at most :attr:`max_nodes`
         prefixes, so the result is a pure function of the step; an edge only another order would give is not
-        used (sound, possibly incomplete)."""
+        used (sound, possibly incomplete); ``ids``: the cross ids of ``sig`` when known."""
         out: dict[int, tuple[int, ...]] = {}
         n = len(sig)
-        after, known, ids = self._after, self._lattice, [self._cross_id(c) for c in sig]
+        after, known = self._after, self._lattice
+        ids = [self._cross_id(c) for c in sig] if ids is None else ids
         if math.factorial(n) <= self.max_orders and _prefixes(n) <= self.max_nodes:
             # the budget cannot run out: depth first over the orders, lexicographic
             chains = [self._chains[c] for c in ids]
@@ -559,11 +582,16 @@ class ExecutedWords:
 
     def _step_id(self, mask: int, sig: tuple) -> int:
         """A small integer naming the step key (mask, signature), with its tables of orders and rows."""
-        key = (mask, sig)
+        return self._code_id(mask, tuple(self._cross_id(c) for c in sig))
+
+    def _code_id(self, mask: int, cids: tuple[int, ...]) -> int:
+        """:meth:`_step_id` of the signature named by its cross ids."""
+        key = (mask, cids)
         sid = self._step_ids.get(key)
         if sid is None:
             sid = self._step_ids[key] = len(self._step_keys)
-            self._step_keys.append(key)
+            self._step_keys.append((mask, tuple(self._crosses[c] for c in cids)))
+            self._step_cids.append(cids)
             self._step_orders.append([None] * self.Q)
             if (sid + 1) * self.Q > len(self._row_at):
                 self._row_at = np.concatenate([self._row_at, np.full_like(self._row_at, -1)])
@@ -574,7 +602,9 @@ class ExecutedWords:
         with the same projected source label and crossing signature share it; cached on the pair)."""
         sid = self._pair_steps.get((s, t))
         if sid is None:
-            sid = self._pair_steps[(s, t)] = self._step_id(*self.signature(s, t))
+            move_id = self._move_id
+            cids = tuple(x for x in map(move_id, self._moves(s, t)) if x >= 0)
+            sid = self._pair_steps[(s, t)] = self._code_id(self.ts.label_mask(s) & self.relevant, cids)
         return sid
 
     def _orders(self, q: int, sid: int) -> dict[int, tuple[int, ...]]:
@@ -587,10 +617,10 @@ class ExecutedWords:
                 S = self.delta(1 << q, mask)
                 r = {d: () for d in range(self.Q) if S >> d & 1}
             elif self.Q <= self.max_joint and self._unbudgeted(len(sig)):
-                rows[:] = self._search_all(mask, sig)
+                rows[:] = self._search_all(mask, sig, self._step_cids[sid])
                 return rows[q]
             else:
-                r = self._search(q, mask, sig)
+                r = self._search(q, mask, sig, self._step_cids[sid])
             rows[q] = r
         return r
 
@@ -599,11 +629,12 @@ class ExecutedWords:
         return math.factorial(n) <= self.max_orders and _prefixes(n) <= self.max_nodes
 
     # relations: a Q × Q boolean matrix as one integer, row q (the NBA states reached from q) in bits Q·q..Q·q+Q−1
-    def _letter_columns(self, letter: int) -> tuple[tuple[int, int], ...]:
-        """(j, δ(j, letter) as a mask) for the NBA states j with successors (cached)."""
+    def _letter_columns(self, letter: int) -> tuple[tuple[int, ...], tuple[int, ...]]:
+        """The NBA states j with successors and δ(j, letter) of each as a mask, as two tuples (cached)."""
         cols = self._columns.get(letter)
         if cols is None:
-            cols = self._columns[letter] = self.guards.columns(letter)
+            pairs = self.guards.columns(letter)
+            cols = self._columns[letter] = (tuple(j for j, _ in pairs), tuple(m for _, m in pairs))
         return cols
 
     def _read(self, R: int, letter: int) -> int:
@@ -613,7 +644,7 @@ class ExecutedWords:
         out = self._reads.get(key)
         if out is None:
             out, col = 0, self._col
-            for j, m in self._letter_columns(letter):
+            for j, m in zip(*self._letter_columns(letter)):
                 c = R >> j & col
                 if c:
                     out |= c * m
@@ -661,12 +692,12 @@ class ExecutedWords:
         self._joint[key] = out
         return out
 
-    def _search_all(self, mask: int, sig: tuple) -> list[dict[int, tuple[int, ...]]]:
+    def _search_all(self, mask: int, sig: tuple, ids: Sequence[int] | None = None) -> list[dict[int, tuple[int, ...]]]:
         """:meth:`_search` for every start state q at once (unbudgeted searches): the same orders are tried in
         the same sequence on relations instead of subsets, so every row is the one :meth:`_search` gives."""
         Q, n = self.Q, len(sig)
         out: list[dict[int, tuple[int, ...]]] = [{} for _ in range(Q)]
-        ids = [self._cross_id(c) for c in sig]
+        ids = [self._cross_id(c) for c in sig] if ids is None else ids
         after, known = self._after_all, self._joint
         covered = 0
         stack = [((self._identity,), mask, (1 << n) - 1, ())]

@@ -221,6 +221,7 @@ class ObjectStrategy:
         self._cubes: dict[tuple[int, int], CubeGoal] = {}
         self._goals: dict[tuple, Goal | None] = {}
         self._steps: dict[tuple, float] = {}  # cube_steps per (state, cube)
+        self._power_of: dict[State, tuple[list[float], list[float]]] = {}
         self._dlist = ts.dist.tolist()
         self._dscale = float(ts.dist.max()) * (ts.N + ts.M) + 1.0
 
@@ -278,6 +279,7 @@ class ObjectStrategy:
         N = ts.N
         d = self._dlist
         steps, dist = 0, 0.0
+        powers = None
         for e, k in cg.required.items():
             if e < N:
                 if s[e] != k:
@@ -289,15 +291,29 @@ class ObjectStrategy:
                 if r != k:
                     steps += 1
                     dist += d[r][k]
-                    team = sum(ts.power[i] for i in range(N) if s[N + ts.M + i] == j)
+                    if powers is None:
+                        powers = self._powers(s)
+                    team = powers[0][j]
                     if team < ts.required_power[j]:
-                        near = sum(ts.power[i] for i in range(N) if s[i] == r and s[N + ts.M + i] < 0)
-                        steps += 1 if team + near >= ts.required_power[j] else 2
+                        steps += 1 if team + powers[1][r] >= ts.required_power[j] else 2
         for e, mask in cg.forbidden.items():
             if mask >> s[e] & 1 and e not in cg.required:
                 steps += 1 if e < N else 3
         out = self._steps[key] = steps + dist / self._dscale
         return out
+
+
+    def _powers(self, s: State) -> tuple[list[float], list[float]]:
+        """Per object the power of the robots grasping it in s, and per region the power of the free robots
+        there (cached per state)."""
+        hit = self._power_of.get(s)
+        if hit is None:
+            ts = self.ts
+            N, M = ts.N, ts.M
+            team = [sum(ts.power[i] for i in range(N) if s[N + M + i] == j) for j in range(M)]
+            near = [sum(ts.power[i] for i in range(N) if s[i] == r and s[N + M + i] < 0) for r in range(ts.K)]
+            hit = self._power_of[s] = (team, near)
+        return hit
 
 
 def strategy_for(ts, relevant: int):
@@ -568,7 +584,10 @@ class _Tree:
             CY = C[Yc] - 1e-9
             newc = C[batch][:, None] + chi[None, :]  # (batch, states)
             cheaper = newc[:, :, None] < CY[None, :, :]  # (batch, states, Q)
-            first = (moves[np.asarray(self.n_q, dtype=np.int64)[batch]][:, None, :] & hidden[None] & cheaper
+            if not (cheaper & has).any():  # no node is cheaper through the batch: nothing to reparent
+                break
+            n_q = self.n_q
+            first = (moves[[n_q[v] for v in vs[i:]]][:, None, :] & hidden[None] & cheaper
                      ).transpose(0, 2, 1)  # (batch, Q, states): NBA state first, as the moves are listed
             if len(vk_all):
                 other = has[vk_all][None] & (Y[vk_all][None] != batch[:, None, None])
