@@ -634,7 +634,7 @@ class ExecutedWords:
         cols = self._columns.get(letter)
         if cols is None:
             pairs = self.guards.columns(letter)
-            cols = self._columns[letter] = (tuple(j for j, _ in pairs), tuple(m for _, m in pairs))
+            cols = self._columns[letter] = tuple(zip(*pairs)) if pairs else ((), ())
         return cols
 
     def _read(self, R: int, letter: int) -> int:
@@ -779,6 +779,10 @@ class ExecutedWords:
                     self._add_row(f)
             at = self._row_at[flat]
         return self._row_store[at]
+
+    def step_targets(self, sid: int, q: int):
+        """The NBA states of row q of step ``sid`` (:meth:`step_rows`), as the keys of a mapping."""
+        return self._orders(q, sid)
 
     def _add_row(self, f: int) -> None:
         """Store row f = sid·Q + q, with every other row of step sid whose orders are known by then."""

@@ -367,6 +367,8 @@ class _Tree:
         self.X = np.zeros((cap, self.width), dtype=planner.strategy.dtype)
         self.lid = np.zeros(cap, dtype=np.int32)
         self.node_of = np.full((cap, self.Q), -1, dtype=np.int64)
+        self._at: list[list[int]] = []  # node_of as lists
+        self.lids: list[int] = []  # lid as a list
         self.C = np.zeros(cap)
         self.states: list[State] = []
         self.tid_of: dict[State, int] = {}
@@ -397,7 +399,9 @@ class _Tree:
             self.lid = np.concatenate([self.lid, np.zeros_like(self.lid)])
             self.node_of = np.concatenate([self.node_of, np.full_like(self.node_of, -1)])
         self.X[tid] = s
-        self.lid[tid] = self.p.labels.lid(s)
+        self.lid[tid] = lid = self.p.labels.lid(s)
+        self.lids.append(lid)
+        self._at.append([-1] * self.Q)
         self.states.append(s)
         self.tid_of[s] = tid
         return tid
@@ -415,6 +419,7 @@ class _Tree:
         if parent >= 0:
             self.children[parent].append(v)
         self.node_of[tid, q] = v
+        self._at[tid][q] = v
         succ = self.p.labels.succ[self.lid[tid]][q]
         h = min((self.D[x] for x in succ), default=INF)
         self.h.append(h)
@@ -467,48 +472,53 @@ class _Tree:
                 tid = self._add_state(s)
                 pred, chi, seen = self._link(tid)
             else:
-                pred, chi, seen = self._adjacent(tid)
+                pred, chi, seen = self._adj[tid]
             if p.banned and s in p.banned:
-                keep = np.array([self.states[u] not in p.banned[s] for u in pred], dtype=bool)
-                pred, chi, seen = pred[keep], chi[keep], seen[keep]
+                keep = [k for k, u in enumerate(pred) if self.states[u] not in p.banned[s]]
+                pred, chi, seen = [pred[k] for k in keep], [chi[k] for k in keep], [seen[k] for k in keep]
         else:
-            pred = np.flatnonzero(p.trans.mask(X, s))
+            pa = np.flatnonzero(p.trans.mask(X, s))
             if p.banned and s in p.banned:
-                pred = pred[[self.states[u] not in p.banned[s] for u in pred]].astype(np.int64)
+                pa = pa[[self.states[u] not in p.banned[s] for u in pa]].astype(np.int64)
             if tid is None:
                 tid = self._add_state(s)
-            seen = None
-        if len(pred) == 0:
+            pred, chi, seen = pa.tolist(), p.trans.cost(X[pa], row).tolist(), p.words.visible(X[pa], s).tolist()
+        if not pred:
             return
-        if seen is None:
-            chi = p.trans.cost(X[pred], row)
-            seen = p.words.visible(X[pred], s)
-        pi, pq = np.nonzero(self.node_of[pred] >= 0)  # candidate parent nodes (tree state, NBA state)
-        if len(pi) == 0:  # only states without nodes (reached through banned steps) lead here
-            return
-        parents = self.node_of[pred[pi], pq]
-        base = self.C[parents] + chi[pi]
-        T = p.labels.T[self.lid[pred[pi]], pq]  # (candidates, Q): NBA moves of each candidate
-        vc = np.flatnonzero(seen[pi])
-        if len(vc):  # steps whose crossings the task sees: executed-word moves instead of the label's
-            T = T.copy()
-            step_id, states = p.words.step_id, self.states
-            pv = pi[vc]  # sorted: the candidates of one parent state are consecutive
-            first = np.ones(len(pv), dtype=bool)
-            first[1:] = pv[1:] != pv[:-1]
-            sids = np.array([step_id(states[u], s) for u in pred[pv[first]].tolist()], dtype=np.int64)
-            T[vc] = p.words.step_rows(sids[np.cumsum(first) - 1], pq[vc])
-        tot = np.where(T, base[:, None], INF)
-        best = tot.argmin(axis=0)
-        best_cost = tot[best, np.arange(self.Q)]
+        # cheapest parent per NBA state among the nodes at the neighbouring states, the first one on ties;
+        # steps whose crossings the task sees take executed-word moves instead of the label's
+        Q, C, at, lids = self.Q, self.C, self._at, self.lids
+        succ, words, states = p.labels.succ, p.words, self.states
+        best_cost, best = [INF] * Q, [-1] * Q
+        cand_u, cand_c = [], []
+        for u_state, c, vis in zip(pred, chi, seen):
+            nodes, moves, sid = at[u_state], succ[lids[u_state]], -1
+            for q in range(Q):
+                u = nodes[q]
+                if u < 0:
+                    continue
+                if vis:
+                    if sid < 0:
+                        sid = words.step_id(states[u_state], s)
+                    targets = words.step_targets(sid, q)
+                else:
+                    targets = moves[q]
+                b = C[u] + c
+                k = len(cand_u)
+                cand_u.append(u)
+                cand_c.append(c)
+                for q2 in targets:
+                    if b < best_cost[q2]:
+                        best_cost[q2], best[q2] = b, k
         changed = []
-        for q in np.flatnonzero(np.isfinite(best_cost)):
-            k = int(best[q])
-            u = int(parents[k])
-            c = float(chi[pi[k]])
-            v = int(self.node_of[tid, q])
+        for q in range(Q):
+            k = best[q]
+            if k < 0:
+                continue
+            u, c = cand_u[k], cand_c[k]
+            v = at[tid][q]
             if v < 0:
-                changed.append(self._new_node(tid, int(q), u, c))
+                changed.append(self._new_node(tid, q, u, c))
             elif self.C[u] + c < self.C[v] - 1e-9 and u != v:
                 self._reparent(v, u, c)
                 changed.append(v)
@@ -518,7 +528,7 @@ class _Tree:
         while queue:
             v = queue.pop()
             for q2 in succ_rows[self.n_q[v]]:
-                y = int(self.node_of[tid, q2])
+                y = at[tid][q2]
                 if y < 0:
                     y = self._new_node(tid, q2, v, 0.0)
                 elif y != v and self.C[v] < self.C[y] - 1e-9:
@@ -527,40 +537,39 @@ class _Tree:
                     continue
                 changed.append(y)
                 queue.append(y)
-        if not p.strategy.symmetric:
-            pred = np.flatnonzero(p.trans.mask_from(s, X))
+        if not changed:
+            return
+        if p.strategy.symmetric:  # symmetric relation and χ: successors of s are its predecessors
+            pa, ca, sa = np.array(pred, dtype=np.int64), np.array(chi, dtype=float), np.array(seen, dtype=bool)
+        else:
+            pa = np.flatnonzero(p.trans.mask_from(s, X))
             if p.banned and s in p.banned:
-                pred = pred[[self.states[u] not in p.banned[s] for u in pred]].astype(np.int64)
-            chi = p.trans.cost(row, X[pred])
-            seen = p.words.visible(X[pred], s)
-        if changed:  # symmetric relation and χ: successors of s are its predecessors
-            self._rewire(list(dict.fromkeys(changed)), pred, chi, seen)
+                pa = pa[[self.states[u] not in p.banned[s] for u in pa]].astype(np.int64)
+            ca = p.trans.cost(row, X[pa])
+            sa = p.words.visible(X[pa], s)
+        self._rewire(list(dict.fromkeys(changed)), pa, ca, sa)
 
-    def _link(self, tid: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def _link(self, tid: int) -> tuple[list[int], list[float], list[bool]]:
         """The neighbours of the new tree state ``tid`` among the earlier ones (symmetric strategies): the
-        transition test, χ and visibility computed once and remembered for both ends (:meth:`_adjacent`)."""
+        transition test, χ and visibility computed once and remembered for both ends (``_adj``: per tree state
+        its neighbours among all tree states in increasing order, what the transition test over them gives)."""
         p = self.p
         s = self.states[tid]
         rows = self.X[:tid + 1]
         nb = np.flatnonzero(p.trans.mask(rows, s))
         chi = p.trans.cost(rows[nb], rows[tid][None, :])
         seen = p.words.visible(rows[nb], s)
-        self._adj.append([nb.tolist(), chi.tolist(), seen.tolist()])
+        nb, chi, seen = nb.tolist(), chi.tolist(), seen.tolist()
+        self._adj.append([nb, chi, seen])
         adj = self._adj
-        for u, c, w in zip(nb.tolist(), chi.tolist(), seen.tolist()):
+        for u, c, w in zip(nb, chi, seen):
             if u != tid:
                 entry = adj[u]
                 entry[0].append(tid)
                 entry[1].append(c)
                 entry[2].append(w)
-        lower = nb < tid
-        return nb[lower], chi[lower], seen[lower]
-
-    def _adjacent(self, tid: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """(tree states, χ, visibility) of the transitions between tree state ``tid`` and every tree state,
-        in increasing order (what the transition test over all tree states gives)."""
-        nb, chi, seen = self._adj[tid]
-        return np.array(nb, dtype=np.int64), np.array(chi, dtype=float), np.array(seen, dtype=bool)
+        k = len(nb) - 1 if nb and nb[-1] == tid else len(nb)
+        return nb[:k], chi[:k], seen[:k]
 
     def _rewire(self, vs: list[int], succ: np.ndarray, chi: np.ndarray, vis: np.ndarray) -> None:
         """Reparent the nodes at TS states ``succ`` (costs ``chi`` from the one TS state of the nodes ``vs``;
