@@ -1,4 +1,4 @@
-"""Adaptive navigation and cooperative-transport control laws (paper Sec. III-A), pure numpy.
+"""Adaptive navigation and cooperative-transport control laws (paper Sec. III-A); the hot path is one compiled kernel.
 
 Navigation of one entity with unknown mass m and friction bound α (Assumption 1):
 

@@ -167,11 +167,6 @@ def _phi_point(c0, c1, g0, g1, centers, rho2, sign, taus, cnorm, k1, k2):
     return value, gx, gy, hxx, hxy, hyy
 
 
-def outside_free_set(phi: float) -> bool:
-    """Whether a value of φ flags a state past a barrier's pole (outside the free set)."""
-    return not math.isfinite(phi)
-
-
 @dataclass(frozen=True)
 class NavigationFunction:
     """φ of Def. 3 for goal χ_d, point obstacles b_ℓ and the unit-circle boundary."""
