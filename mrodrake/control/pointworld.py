@@ -96,9 +96,11 @@ class _Ring:
 
 
 def _prepare_ring(coords: np.ndarray, *, is_exterior: bool, curvature_fraction: float,
-                  corner_cap: float = math.inf) -> _Ring:
+                  corner_cap: float = math.inf, coarse_fraction: float = 0.0, coarse_cap: float = 0.0) -> _Ring:
     """Ring data; on the outer ring, panels at convex corners of the free space (sharp left turns) are capped
-    at ``corner_cap`` (H degenerates there and its boundary error peaks on the panels next to them)."""
+    at ``corner_cap`` (H degenerates there and its boundary error peaks on the panels next to them).  Curved
+    parts take panels of ``curvature_fraction`` × their radius of curvature ρ, or of up to ``coarse_fraction`` × ρ
+    where that is at most ``coarse_cap``."""
     pts = np.asarray(coords, dtype=float)[:-1]
     scale = float(np.max(np.ptp(pts, axis=0))) if len(pts) else 0.0
     keep = np.linalg.norm(pts - np.roll(pts, 1, axis=0), axis=1) > 1e-12 * max(scale, 1.0)
@@ -125,7 +127,7 @@ def _prepare_ring(coords: np.ndarray, *, is_exterior: bool, curvature_fraction: 
     breaks = cum[:-1][sharp]
     gentle = (~sharp) & (np.abs(turn) > _GENTLE_ANGLE)
     radius = 0.5 * (lengths + np.roll(lengths, 1)) / np.maximum(np.abs(turn), 1e-300)
-    caps = curvature_fraction * radius
+    caps = np.maximum(curvature_fraction * radius, np.minimum(coarse_fraction * radius, coarse_cap))
     if is_exterior and math.isfinite(corner_cap):
         convex = sharp & (turn > 0.0)
         caps[convex] = corner_cap
@@ -539,6 +541,8 @@ class PointWorldMap:
         hole_refinement: float = 2.0,
         grading: float = 0.4,
         curvature_fraction: float = 0.5,
+        hole_curvature_fraction: float | None = None,
+        curved_gap_fraction: float = 0.1,
         gap_fraction: float = 0.25,
         blob_tolerance: float = 0.08,
         max_refinements: int = 3,
@@ -549,7 +553,10 @@ class PointWorldMap:
         ball tangent there), at most ``curvature_fraction`` × the local radius of curvature and
         ``clearance_fraction`` × the length of a straight stretch between sharp corners, growing at most
         ``grading`` per unit distance, clipped to [min_panel, max_panel] (defaults: diameter/25 and
-        diameter/2000).  Holes are refined ``hole_refinement`` times more (their boundary error, relative to
+        diameter/2000); on the curved parts of a hole, up to ``hole_curvature_fraction`` × the radius of
+        curvature (default: ``curvature_fraction``) where that is at most ``curved_gap_fraction`` × its gap g_ℓ
+        (on a hole near another boundary long curved panels make a large image).  Holes are refined
+        ``hole_refinement`` times more (their boundary error, relative to
         the separation of the points b_ℓ, scales with the product of the two fractions).  Every panel of hole ℓ
         is also at most ``gap_fraction`` × its gap g_ℓ (distance to the nearest other ring), on its whole
         boundary: the separation r̄_ℓ of b_ℓ scales with g_ℓ |J_H| near the gap, while the image of the hole
@@ -585,11 +592,17 @@ class PointWorldMap:
         poly = orient(poly, sign=1.0)  # exterior counter-clockwise, holes clockwise: free side on the left
         outer = np.asarray(poly.exterior.coords)
         factors = [float(hole_refinement)] * len(poly.interiors)
-        gap_caps = gap_fraction * _hole_gaps(poly)
-        opts = (max_panel, min_panel, clearance_fraction, grading, curvature_fraction)
+        hole_curvature = curvature_fraction if hole_curvature_fraction is None else float(hole_curvature_fraction)
+        if not (hole_curvature > 0 and curved_gap_fraction >= 0):
+            raise ValueError("need hole_curvature_fraction > 0, curved_gap_fraction >= 0")
+        gaps = _hole_gaps(poly)
+        gap_caps = gap_fraction * gaps
+        curved_caps = curved_gap_fraction * gaps
+        opts = (max_panel, min_panel, clearance_fraction, grading, curvature_fraction, hole_curvature)
 
         def panels_for(fs):
-            return cls._panels(poly, outer, fs, [c * hole_refinement / f for c, f in zip(gap_caps, fs)], *opts)
+            return cls._panels(poly, outer, fs, [c * hole_refinement / f for c, f in zip(gap_caps, fs)],
+                               [c * hole_refinement / f for c, f in zip(curved_caps, fs)], *opts)
 
         panels = panels_for(factors)
         for attempt in range(max_refinements + 1):
@@ -612,14 +625,17 @@ class PointWorldMap:
         return pw
 
     @staticmethod
-    def _panels(poly, outer, factors, caps, max_panel, min_panel, clearance_fraction, grading, curvature_fraction):
-        """One discretisation: hole ℓ refined ``factors[ℓ]`` times, its panels at most ``caps[ℓ]``; returns
+    def _panels(poly, outer, factors, caps, curved_caps, max_panel, min_panel, clearance_fraction, grading,
+                curvature_fraction, hole_curvature_fraction):
+        """One discretisation: hole ℓ refined ``factors[ℓ]`` times, its panels at most ``caps[ℓ]``, its coarser
+        curved panels at most ``curved_caps[ℓ]``; returns
         (outer perimeter, panel starts, ends, ring ids, arc positions of starts and ends)."""
         rings = [_prepare_ring(outer, is_exterior=True, curvature_fraction=curvature_fraction,
                                corner_cap=_CORNER_FRACTION * max_panel)]
         rings += [
-            _prepare_ring(np.asarray(h.coords), is_exterior=False, curvature_fraction=curvature_fraction / f)
-            for h, f in zip(poly.interiors, factors)
+            _prepare_ring(np.asarray(h.coords), is_exterior=False, curvature_fraction=curvature_fraction / f,
+                          coarse_fraction=hole_curvature_fraction / f, coarse_cap=cc)
+            for h, f, cc in zip(poly.interiors, factors, curved_caps)
         ]
         fractions = [clearance_fraction] + [clearance_fraction / f for f in factors]
         a_xy, b_xy, rid, s_a, s_b = _discretise(

@@ -83,6 +83,16 @@ def resolution(pw_map, points) -> np.ndarray:
     return s_min * math.hypot(maxx - minx, maxy - miny)
 
 
+def point_resolution(pw_map, x) -> float:
+    """:func:`resolution` at the one point ``x`` (2,), on Python floats (the sequencer's check on every tick)."""
+    (a, b), (c, d) = np.asarray(pw_map.jacobian(np.asarray(x, dtype=float).reshape(2)), dtype=float).tolist()
+    fro = a * a + b * b + c * c + d * d
+    det = abs(a * d - b * c)
+    s_max = math.sqrt(0.5 * (fro + math.sqrt(max(fro * fro - 4.0 * det * det, 0.0))))
+    minx, miny, maxx, maxy = pw_map.free_space.bounds
+    return (det / s_max if s_max > 0.0 else 0.0) * math.hypot(maxx - minx, maxy - miny)
+
+
 def grid_path(poly: Polygon, start, goal, step: float = GRID_STEP,
               clearances: tuple[float, ...] = GRID_CLEARANCES) -> np.ndarray:
     """A shortest 8-connected grid path (spacing ``step``) from ``start`` to ``goal`` through the points of

@@ -46,6 +46,7 @@ from mrodrake.control.windows import (
     WINDOW_SWITCH,
     goal_window_free_space,
     grid_path,
+    point_resolution,
     resolution,
     window_free_space,
 )
@@ -213,6 +214,27 @@ class _Edit:
         self.word_step, self.corridors = self.st.word_step, self.st.corridors
         self.grants: dict[int, Corridor] = {}
 
+    def unchanged(self) -> bool:
+        """True if this tick changed nothing: every field is the one it started from (mappings entry by entry,
+        the append-only records by length, the monitor by its run, regions and read flag)."""
+        st, mon = self.st, self.st.monitor
+        same = (self.step_idx == st.step_idx and self.queue is st.queue and self.active is st.active
+                and self.status is st.status and self.message == st.message and self.version == st.version
+                and self.episode == st.episode and self.next_job == st.next_job and self.word_step == st.word_step
+                and self.corridors == st.corridors and len(self.events) == len(st.events)
+                and len(self.grasps) == len(st.grasps) and len(self.primitives) == len(st.primitives)
+                and self.done == st.done and len(self.running) == len(st.running)
+                and all(a is b for a, b in zip(self.running, st.running))
+                and self.monitor.run == mon.run and self.monitor.read_in_step == mon.read_in_step
+                and self.monitor.regions == mon.regions)
+        if not same:
+            return False
+        for new, old in ((self.tasks, st.tasks), (self.syncs, st.syncs)):
+            if new.keys() != old.keys() or any(new[k] is not old[k] for k in new):
+                return False
+        return (self.coupled == st.coupled and self.engaged == st.engaged and self.docked == st.docked
+                and self.grasp_open == st.grasp_open)
+
     def freeze(self) -> ExecState:
         return ExecState(self.step_idx, self.queue, self.active, self.tasks, self.syncs, self.coupled,
                          self.engaged, self.docked, self.grasp_open, self.monitor, tuple(self.events),
@@ -298,7 +320,8 @@ class Sequencer:
 
     # ------------------------------------------------------------------ the tick
     def tick(self, st: ExecState, t: float, X: np.ndarray) -> ExecState:
-        """The state after one periodic update at time t with the entities' states X (rows [x, y, vx, vy])."""
+        """The state after one periodic update at time t with the entities' states X (rows [x, y, vx, vy]);
+        ``st`` itself if the update changed nothing."""
         if st.status is not Status.RUNNING:
             return st
         ed = _Edit(st)
@@ -312,7 +335,7 @@ class Sequencer:
                 self._advance(ed, t, X)
         except _Failure as exc:
             self._fail(ed, t, str(exc))
-        return ed.freeze()
+        return st if ed.unchanged() else ed.freeze()
 
     def abort(self, st: ExecState, t: float, reason: str) -> ExecState:
         """End the mission as a failure of the primitive in execution, from outside the tick (a controller
@@ -806,7 +829,7 @@ class Sequencer:
             return m
         x = X[m.entity, :2]
         if m.waypoint is None:
-            res = resolution(m.world[1], [x])[0]
+            res = point_resolution(m.world[1], x)
             if res >= RESOLUTION or (math.hypot(*X[m.entity, 2:]) >= STALL_SPEED and res >= RESOLUTION_FLOOR):
                 return m
             return self._window(ed, x.copy(), m, replace(m.world[0], start=x.copy())) or replace(m, world=())
@@ -933,7 +956,8 @@ class Sequencer:
     def _wait(self, ed: _Edit, t: float, X: np.ndarray, a: Active) -> bool:
         """Progress the motion of ``a``; True once it has arrived (then parked and recorded)."""
         m = self._next_leg(ed, X, self._settle(ed, X, self._next_window(ed, X, a.motion)))
-        ed.active = replace(a, motion=m)
+        if m is not a.motion:
+            ed.active = replace(a, motion=m)
         if self._arrived(X, m):
             ed.tasks[m.controller] = None
             self._sync(ed, m.plant, X[m.entity, :2], (0.0, 0.0), True)

@@ -8,7 +8,7 @@ handles (Drake idiom: RussTedrake/manipulation's ``AddIiwa`` & co.).
 * :func:`AddControllers`: an adaptive navigation controller per robot and a transport controller per team
   plant, one :class:`~mrodrake.systems.controllers.MissionControllers` system wired to the plants;
 * :func:`AddStateSwitches`: a PortSwitch per robot and object choosing its authoritative [x, ẋ] (its own
-  plant, or the team plant it is coupled to), with the index of every input;
+  plant, or the team plant it is coupled to), with the index of every input, and a Multiplexer stacking them;
 * :func:`AddSupervisor`: the supervisor with every task, sync and select connection.
 """
 
@@ -17,7 +17,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from pydrake.systems.framework import DiagramBuilder
-from pydrake.systems.primitives import Demultiplexer, PortSwitch
+from pydrake.systems.primitives import Demultiplexer, Multiplexer, PortSwitch
 
 from mrodrake.control.adaptive import AdaptiveGains
 from mrodrake.execution.sequencer import Sequencer
@@ -64,10 +64,17 @@ class Team:
 @dataclass(frozen=True)
 class StateSwitches:
     """One PortSwitch per entity; ``route_ports[(entity, team name)]`` is the switch input carrying the
-    entity's state from that team plant (input 1 is the entity's own plant)."""
+    entity's state from that team plant (input 1 is the entity's own plant); ``mux`` stacks the switch outputs
+    in entity order (robots, then objects)."""
 
     switches: dict[str, PortSwitch]
     route_ports: dict[tuple[str, str], int]
+    mux: Multiplexer
+
+    @property
+    def states_port(self):
+        """The output port carrying the routed [x, ẋ] of every entity, 4 entries each."""
+        return self.mux.get_output_port(0)
 
 
 def AddEntityPlants(builder: DiagramBuilder, scenario: Scenario, sequencer: Sequencer) -> EntityPlants:
@@ -104,8 +111,8 @@ def AddControllers(builder: DiagramBuilder, scenario: Scenario, plants: EntityPl
 
 def AddStateSwitches(builder: DiagramBuilder, scenario: Scenario, plants: EntityPlants, teams: list[Team],
                      controllers: MissionControllers) -> StateSwitches:
-    """The switches, their inputs (own plant first, then every team plant the entity belongs to) and the
-    robots' controller state inputs."""
+    """The switches, their inputs (own plant first, then every team plant the entity belongs to), the
+    robots' controller state inputs and the Multiplexer of all routed states."""
     switches, route = {}, {}
     for e in plants.entities:
         sw = builder.AddSystem(PortSwitch(4))
@@ -123,15 +130,19 @@ def AddStateSwitches(builder: DiagramBuilder, scenario: Scenario, plants: Entity
             route[(r, t.name)] = int(port.get_index())
     for r in scenario.robot_names:
         builder.Connect(switches[r].get_output_port(), controllers.state_ports[f"nav_{r}"])
-    return StateSwitches(switches, route)
+    mux = builder.AddSystem(Multiplexer([4] * len(plants.entities)))
+    mux.set_name("routed_states")
+    for k, e in enumerate(plants.entities):
+        builder.Connect(switches[e].get_output_port(), mux.get_input_port(k))
+    return StateSwitches(switches, route, mux)
 
 
 def AddSupervisor(builder: DiagramBuilder, sequencer: Sequencer, plants: EntityPlants,
                   controllers: MissionControllers, switches: StateSwitches, period: float) -> Supervisor:
-    """The supervisor reading every switch output and driving every task, sync and selector."""
+    """The supervisor reading the routed states and driving every task, sync and selector."""
     sup = builder.AddSystem(Supervisor(sequencer, switches.route_ports, period))
-    for k, e in enumerate(sequencer.entities):
-        builder.Connect(switches.switches[e].get_output_port(), sup.state_ports[k])
+    builder.Connect(switches.states_port, sup.states_port)
+    for e in sequencer.entities:
         builder.Connect(sup.select_ports[e], switches.switches[e].get_port_selector_input_port())
     for p in plants.names:
         builder.Connect(sup.sync_ports[p], plants.system.sync_ports[p])

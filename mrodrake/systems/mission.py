@@ -52,7 +52,7 @@ class MissionLogger(LeafSystem):
         self.set_name("mission_logger")
         self.entities = list(entities)
         self.controllers = dict(controllers)  # name -> (entity, members)
-        self.state_ports = [self.DeclareVectorInputPort(f"state_{e}", 4) for e in self.entities]
+        self.states_port = self.DeclareVectorInputPort("states", 4 * len(self.entities))
         self.u_ports, self.est_ports, self.task_ports = {}, {}, {}
         for c in self.controllers:
             self.u_ports[c] = self.DeclareVectorInputPort(f"u_{c}", 2)
@@ -72,7 +72,7 @@ class MissionLogger(LeafSystem):
         if self.times and t <= self.times[-1]:
             return EventStatus.DidNothing()
         self.times.append(t)
-        self.states.append(np.concatenate([p.Eval(context) for p in self.state_ports]))
+        self.states.append(np.array(self.states_port.Eval(context)))
         for c, (entity, members) in self.controllers.items():
             cmd = self.task_ports[c].Eval(context)
             if cmd is None:
@@ -199,8 +199,7 @@ class Mission:
         ctrl_info = {f"nav_{r}": (r, ()) for r in scenario.robot_names}
         ctrl_info.update({t.controller: (scenario.object_names[t.obj], t.members) for t in self.teams})
         self.logger = b.AddSystem(MissionLogger(entities, ctrl_info, log_period))
-        for k, e in enumerate(entities):
-            b.Connect(self.switches.switches[e].get_output_port(), self.logger.state_ports[k])
+        b.Connect(self.switches.states_port, self.logger.states_port)
         for c in self.controllers.names:
             b.Connect(self.controllers.u_ports[c], self.logger.u_ports[c])
             b.Connect(self.controllers.estimates_ports[c], self.logger.est_ports[c])

@@ -282,6 +282,9 @@ class MissionPlants(LeafSystem):
         self._syncs = self.DeclareCacheEntry(
             "sync commands", ValueProducer(allocate=lambda: AbstractValue.Make(None), calc=self._CalcSyncs),
             prerequisites_of_calc={p.ticket() for p in self._sync_list})
+        self._params = self.DeclareCacheEntry(
+            "body parameters", ValueProducer(allocate=lambda: AbstractValue.Make(None), calc=self._CalcParams),
+            prerequisites_of_calc={self.all_parameters_ticket()})
         pre = {self.xc_ticket(), self._syncs.ticket()}
         self.member_ports = {t: [self.DeclareVectorOutputPort(f"member_{t}_{self.robot_names[i]}", 4,
                                                               self._member_out(q, k), prerequisites_of_calc=pre)
@@ -340,28 +343,32 @@ class MissionPlants(LeafSystem):
         return EventStatus.Succeeded()
 
     # ------------------------------------------------------------------ dynamics
-    def _body_friction(self, context, body: int, x0: float, x1: float, v0: float, v1: float
+    def _CalcParams(self, context, value):
+        value.set_value(tuple(tuple(context.get_numeric_parameter(b).value().tolist())
+                              for b in range(len(self._models))))
+
+    def _body_friction(self, params, body: int, x0: float, x1: float, v0: float, v1: float
                        ) -> tuple[float, float, float]:
-        m, scale, freq = context.get_numeric_parameter(body).value().tolist()
+        m, scale, freq = params[body]
         return (m, *friction_xy(self._models[body], scale, freq, x0, x1, v0, v1))
 
-    def _acceleration(self, context, k: int, x0: float, x1: float, v0: float, v1: float,
+    def _acceleration(self, context, params, k: int, x0: float, x1: float, v0: float, v1: float,
                       offsets) -> tuple[float, float]:
-        """ẍ of plant k on Python floats (the hot path of a mission)."""
+        """ẍ of plant k on Python floats (the hot path of a mission); ``params``: [m, scale, frequency] per body."""
         n_r, n_e = len(self.robot_names), len(self.robot_names) + len(self.object_names)
         if k < n_r:  # robot: m ẍ + f = u
-            m, f0, f1 = self._body_friction(context, k, x0, x1, v0, v1)
+            m, f0, f1 = self._body_friction(params, k, x0, x1, v0, v1)
             u0, u1 = self._robot_u[k].Eval(context).tolist()
             return (u0 - f0) / m, (u1 - f1) / m
         if k < n_e:  # object without contact: m ẍ + f = 0
-            m, f0, f1 = self._body_friction(context, k, x0, x1, v0, v1)
+            m, f0, f1 = self._body_friction(params, k, x0, x1, v0, v1)
             return -f0 / m, -f1 / m
         q = k - n_e  # team: m_A ẍ + f_A = Σ u_i
         obj, team = self._team_bodies[q]
-        m_total, f0, f1 = self._body_friction(context, obj, x0, x1, v0, v1)
+        m_total, f0, f1 = self._body_friction(params, obj, x0, x1, v0, v1)
         u0 = u1 = 0.0
         for (d0, d1), i, port in zip(offsets[q].tolist(), team, self._team_u[q]):
-            m_k, g0, g1 = self._body_friction(context, i, x0 + d0, x1 + d1, v0, v1)
+            m_k, g0, g1 = self._body_friction(params, i, x0 + d0, x1 + d1, v0, v1)
             m_total += m_k
             f0 += g0
             f1 += g1
@@ -375,9 +382,10 @@ class MissionPlants(LeafSystem):
         out = [0.0] * (4 * len(self.names))
         if moving:
             s = context.get_continuous_state_vector().value()
+            params = self._params.Eval(context)
             for k in moving:
                 x0, x1, v0, v1 = s[4 * k : 4 * k + 4].tolist()
-                out[4 * k : 4 * k + 4] = (v0, v1, *self._acceleration(context, k, x0, x1, v0, v1, offsets))
+                out[4 * k : 4 * k + 4] = (v0, v1, *self._acceleration(context, params, k, x0, x1, v0, v1, offsets))
         derivatives.get_mutable_vector().SetFromVector(out)
 
     def _member_out(self, q: int, k: int):

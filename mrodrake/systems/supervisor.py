@@ -5,8 +5,9 @@ periodic unrestricted update snapshots the routed [x, ẋ] of every robot and ob
 :meth:`~mrodrake.execution.sequencer.Sequencer.tick`; the outputs route the result: ``task_<controller>``
 (a :class:`~mrodrake.execution.commands.TaskCommand` or None), ``sync_<plant>``
 (:class:`~mrodrake.execution.commands.SyncCommand`) and ``select_<entity>`` (the PortSwitch input carrying the
-entity's state: its own plant, or the team plant it is coupled to).  The simulation ends with
-``ReachedTermination`` when the sequencer is done or has failed.
+entity's state: its own plant, or the team plant it is coupled to).  A tick that changes nothing (most ticks
+of a motion) returns ``DidNothing``, which leaves the context and every cache downstream untouched.  The
+simulation ends with ``ReachedTermination`` when the sequencer is done or has failed.
 """
 
 from __future__ import annotations
@@ -22,9 +23,9 @@ from mrodrake.execution.sequencer import ExecState, Sequencer, Status
 
 
 class Supervisor(LeafSystem):
-    """Inputs ``state_<entity>`` ([x, ẋ], robots then objects); abstract outputs ``task_<controller>``,
-    ``sync_<plant>`` and ``select_<entity>``.  ``route_ports[(entity, team plant)]`` is the index of the
-    switch input that carries the entity's state from that team plant (1: its own plant)."""
+    """Input ``states`` ([x, ẋ] of every entity, robots then objects, 4 entries each); abstract outputs
+    ``task_<controller>``, ``sync_<plant>`` and ``select_<entity>``.  ``route_ports[(entity, team plant)]`` is
+    the index of the switch input that carries the entity's state from that team plant (1: its own plant)."""
 
     def __init__(self, sequencer: Sequencer, route_ports: Mapping[tuple[str, str], int], period: float = 0.5):
         super().__init__()
@@ -33,7 +34,7 @@ class Supervisor(LeafSystem):
         self.route_ports = dict(route_ports)
         self.period = float(period)
         self._state_index = self.DeclareAbstractState(AbstractValue.Make(sequencer.initial_state()))
-        self.state_ports = [self.DeclareVectorInputPort(f"state_{e}", 4) for e in sequencer.entities]
+        self.states_port = self.DeclareVectorInputPort("states", 4 * len(sequencer.entities))
         tick = {self.abstract_state_ticket(self._state_index)}
         self.task_ports = {c: self.DeclareAbstractOutputPort(
             f"task_{c}", lambda: AbstractValue.Make(None), self._TaskCalc(c), prerequisites_of_calc=tick)
@@ -72,8 +73,10 @@ class Supervisor(LeafSystem):
         st = self.exec_state(context)
         if st.status is not Status.RUNNING:
             return EventStatus.ReachedTermination(self, st.message)
-        X = np.array([p.Eval(context) for p in self.state_ports], dtype=float)
+        X = np.array(self.states_port.Eval(context), dtype=float).reshape(-1, 4)
         new = self.sequencer.tick(st, float(context.get_time()), X)
+        if new is st:
+            return EventStatus.DidNothing()  # leaves the context (and every cache downstream) untouched
         state.get_mutable_abstract_state(int(self._state_index)).set_value(new)
         if new.status is Status.DONE:
             return EventStatus.ReachedTermination(self, "mission complete")

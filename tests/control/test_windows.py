@@ -48,7 +48,7 @@ def test_a_dead_end_aisle_runs_on_a_window_map():
     free = entity_free_space(sc, 0.75, start, goal, "p6", "p4", others)
     assert ["shelf_3", "shelf_4", "r1", "r3"] in free.hole_names
     pw = build_map(free)
-    assert resolution(pw, [start])[0] < 1e-6 * RESOLUTION
+    assert resolution(pw, [start])[0] < 1e-3 * RESOLUTION  # flattened like exp(−π s/w) 31 m into the aisle
     whole = build_task(sc, free, pw_map=pw)
     assert _flow(whole, start, 20.0)[0] > start[0] - 1.0  # rounding decides v_d: no progress along the aisle
 
