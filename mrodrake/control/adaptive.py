@@ -368,18 +368,25 @@ class NavigationTask:
         :func:`_law_point` (on the map's treecode) or :func:`_law_values` (other maps)."""
         x0, x1 = np.asarray(x, dtype=float).reshape(2).tolist()
         w0, w1 = np.asarray(xdot, dtype=float).reshape(2).tolist()
+        return self.evaluate_floats(x0, x1, w0, w1, float(m_hat), float(alpha_hat))
+
+    def evaluate_floats(self, x0: float, x1: float, w0: float, w1: float, m_hat: float,
+                        alpha_hat: float) -> ControlEval:
+        """:meth:`evaluate` at x = (x0, x1), ẋ = (w0, w1) given as Python floats (a controller's hot path)."""
         out = np.empty(11)
         if self._tree is not None:
-            status = _law_point(x0, x1, w0, w1, float(m_hat), float(alpha_hat), *self._tree, *self._consts, out)
+            status = _law_point(x0, x1, w0, w1, m_hat, alpha_hat, *self._tree, *self._consts, out)
         else:
             chi, J, Hs = self.pw_map.evaluate(np.array([x0, x1]))
             h = [float(chi[0]), float(chi[1]), *J.ravel().tolist(), Hs[0, 0, 0], Hs[0, 0, 1], Hs[1, 0, 0], Hs[1, 0, 1]]
-            status = _law_values(*h, w0, w1, float(m_hat), float(alpha_hat), *self._consts, out)
+            status = _law_values(*h, w0, w1, m_hat, alpha_hat, *self._consts, out)
         if status == _OUTSIDE:
-            return self._fault(x, xdot, "is outside the free set (past a barrier of the navigation function)")
+            return self._fault((x0, x1), (w0, w1),
+                               "is outside the free set (past a barrier of the navigation function)")
         if status == _DEGENERATE:
-            return self._fault(x, xdot, f"is where the point-world map is degenerate "
-                                  f"(det J_H = {out[10]:.3g}): the entity left the region the map resolves")
+            return self._fault((x0, x1), (w0, w1), f"is where the point-world map is degenerate "
+                                                   f"(det J_H = {out[10]:.3g}): the entity left the region the map "
+                                                   f"resolves")
         return ControlEval(out[0:2], float(out[2]), float(out[3]), out[4:6], out[6:8], out[8:10])
 
     def __post_init__(self):
@@ -393,7 +400,7 @@ class NavigationTask:
         object.__setattr__(self, "_tree", None if tree is None else (tree.vert, tree.links, tree.nodef, tree.nodei,
                                                                      tree.coef, tree.params))
 
-    def _fault(self, x: np.ndarray, xdot: np.ndarray, why: str) -> ControlEval:
+    def _fault(self, x, xdot, why: str) -> ControlEval:
         where = f"x = ({x[0]:.4f}, {x[1]:.4f}) {why}"
         return ControlEval(-FAULT_DAMPING * np.asarray(xdot, dtype=float), 0.0, 0.0, _ZERO2, _ZERO2, _ZERO2, where)
 

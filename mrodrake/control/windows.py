@@ -85,7 +85,12 @@ def resolution(pw_map, points) -> np.ndarray:
 
 def point_resolution(pw_map, x) -> float:
     """:func:`resolution` at the one point ``x`` (2,), on Python floats (the sequencer's check on every tick)."""
-    (a, b), (c, d) = np.asarray(pw_map.jacobian(np.asarray(x, dtype=float).reshape(2)), dtype=float).tolist()
+    x0, x1 = np.asarray(x, dtype=float).reshape(2).tolist()
+    tree = getattr(pw_map, "tree", None)
+    if tree is not None:
+        a, b, c, d = tree.evaluate(x0, x1, True)[2:6].tolist()
+    else:
+        (a, b), (c, d) = np.asarray(pw_map.jacobian(np.array([x0, x1])), dtype=float).tolist()
     fro = a * a + b * b + c * c + d * d
     det = abs(a * d - b * c)
     s_max = math.sqrt(0.5 * (fro + math.sqrt(max(fro * fro - 4.0 * det * det, 0.0))))

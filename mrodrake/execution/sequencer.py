@@ -695,6 +695,8 @@ class Sequencer:
         name = self.entities[entity]
         try:
             free = self._motion_free_space(ed, X, m, start, others)
+            if free.polygon.wkb not in self._maps:  # built here: the worker starts on the next maps meanwhile
+                self._prefetch(ed, X)
             pw = self._map(free)
             self._prefetch(ed, X)
             if not m.departed and not inside_circle(pw, start)[0]:

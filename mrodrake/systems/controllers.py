@@ -260,9 +260,9 @@ class MissionControllers(LeafSystem):
             if cmd is None:
                 value.set_value(_ZERO)
                 return
-            s = self._state_list[q].Eval(context)
-            est = context.get_continuous_state_vector().value()[2 * q : 2 * q + 2]
-            value.set_value(cmd.task.evaluate(s[:2], s[2:], est[0], est[1]))
+            x0, x1, w0, w1 = self._state_list[q].Eval(context).tolist()
+            m_hat, alpha_hat = context.get_continuous_state_vector().value()[2 * q : 2 * q + 2].tolist()
+            value.set_value(cmd.task.evaluate_floats(x0, x1, w0, w1, m_hat, alpha_hat))
         return calc
 
     def law(self, context, controller: str) -> ControlEval:

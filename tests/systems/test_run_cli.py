@@ -97,14 +97,14 @@ def test_exception_inside_the_simulation_is_a_failed_primitive_with_logs(tmp_pat
 def test_controller_fault_ends_the_primitive(tmp_path, monkeypatch):
     """A state past a barrier's pole (here: faked beyond x = 20 m) ends the primitive at the next step with
     the controller's fault, instead of integrating on."""
-    original = NavigationTask.evaluate
+    original = NavigationTask.evaluate_floats
 
-    def evaluate(self, x, xdot, m_hat, alpha_hat):
-        if x[0] > 20.0:
-            return self._fault(x, xdot, "is outside the free set (test)")
-        return original(self, x, xdot, m_hat, alpha_hat)
+    def evaluate_floats(self, x0, x1, w0, w1, m_hat, alpha_hat):
+        if x0 > 20.0:
+            return self._fault((x0, x1), (w0, w1), "is outside the free set (test)")
+        return original(self, x0, x1, w0, w1, m_hat, alpha_hat)
 
-    monkeypatch.setattr(NavigationTask, "evaluate", evaluate)
+    monkeypatch.setattr(NavigationTask, "evaluate_floats", evaluate_floats)
     log = run_mission(load_scenario(TINY), seed=0, out_dir=tmp_path)
     assert not log.ok
     assert re.search(r"failed at t = \d+\.\d\d s: controller fault of \S+: x = \(20\.\d{4}, [\d.]+\) is outside "
