@@ -484,3 +484,22 @@ def test_refinement_stops_when_halving_the_caps_adds_no_panels():
     assert fixed.n_solves == 1
     free_sizes = PointWorldMap.build(free, blob_tolerance=0.0, max_refinements=2)
     assert free_sizes.n_solves == 3
+
+
+def test_holes_take_coarser_curved_panels_only_where_their_gap_allows():
+    """Curved hole panels of up to hole_curvature_fraction × ρ where that is ≤ curved_gap_fraction × the gap:
+    a disk far from every other boundary gets fewer panels, one near a wall keeps the fine ones, and both
+    still collapse to points (image ≤ blob_tolerance × separation, as every map build checks)."""
+    outer = box(0, 0, 60, 40)
+    far, near = Point(20, 20).buffer(3.0), Point(50, 3.6).buffer(3.0)  # gaps 17 m and 0.6 m
+    free = outer.difference(far).difference(near)
+    fine = PointWorldMap.build(free, curvature_fraction=0.1)
+    coarse = PointWorldMap.build(free, curvature_fraction=0.1, hole_curvature_fraction=0.2)
+    count = {name: np.bincount(pw.panel_ring, minlength=3) for name, pw in (("fine", fine), ("coarse", coarse))}
+    k_far = 1 + min(range(2), key=lambda k: abs(list(free.interiors)[k].centroid.x - 20.0))
+    k_near = 3 - k_far
+    assert count["coarse"][k_far] < 0.75 * count["fine"][k_far]
+    assert count["coarse"][k_near] == count["fine"][k_near]
+    assert count["coarse"][0] == count["fine"][0]  # the outer boundary is not a hole
+    for pw in (fine, coarse):
+        assert np.all(pw._hole_blobs() <= 0.08 * separation(pw.hole_points))

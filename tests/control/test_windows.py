@@ -19,6 +19,7 @@ from mrodrake.control.windows import (
     WINDOW_RADIUS,
     goal_window_free_space,
     grid_path,
+    point_resolution,
     resolution,
     window_free_space,
 )
@@ -186,3 +187,16 @@ def test_every_leg_of_a_grid_path_lies_in_the_free_space():
     assert inside_circle(wpw, [x, window.goal]).all() and resolution(wpw, [x]).min() >= RESOLUTION
     end = _flow(build_task(sc, window, pw_map=wpw), x, 60.0)
     assert end[0] > x[0] + 3.0 and shapely.contains_xy(free.polygon, end[0], end[1])
+
+
+def test_point_resolution_is_the_resolution_at_one_point():
+    sc = generate_scenario(3, 1, 3, 1, map=WAREHOUSE)
+    free = entity_free_space(sc, 0.75, np.array([43.0153, 32.3202]), np.array([45.2398, 18.0114]), "p6", "p4", [])
+    pw = build_map(free)
+    rng = np.random.default_rng(3)
+    minx, miny, maxx, maxy = free.polygon.bounds
+    pts = rng.uniform([minx, miny], [maxx, maxy], size=(400, 2))
+    pts = pts[shapely.contains_xy(free.polygon, pts[:, 0], pts[:, 1])][:60]
+    ref = resolution(pw, pts)
+    got = np.array([point_resolution(pw, p) for p in pts])
+    assert np.allclose(got, ref, rtol=1e-12, atol=0.0)  # the same Jacobian, closed forms on floats

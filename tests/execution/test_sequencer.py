@@ -166,3 +166,30 @@ def test_the_planned_track_ends_every_step_at_its_planned_positions(tiny):
     for sp in placement.steps:
         end += len(sp.ops)
         assert np.allclose(seq._planned[end], np.asarray(sp.positions), atol=1e-9)
+
+
+def test_a_tick_that_changes_nothing_returns_the_state_itself(tiny):
+    """While a motion is under way and nothing happens, the tick returns its input state (the supervisor then
+    leaves the Drake context untouched); the tick at which it reaches the end of its leg does not."""
+    sc, plan, words, placement = tiny
+    seq = Sequencer(sc, plan.ts, words, placement, couplings_of(plan), prefetch=False)
+    st = seq.initial_state()
+    X = np.zeros((len(seq.entities), 4))
+    X[:, :2] = np.asarray(placement.initial)
+    t = 0.0
+    for _ in range(2000):
+        a = st.active
+        if a is not None and a.motion is not None and a.motion.kind is OpKind.NAVIGATE and a.motion.world:
+            break
+        st = seq.tick(st, t, X)
+        X = _kinematic(seq, st, X)
+        t += 0.5
+    else:
+        pytest.fail("no navigation on the point-world law")
+    X[st.active.motion.entity, 2:] = 1.0  # under way: not at rest, so neither at a leg's end nor arrived
+    st = seq.tick(st, t, X)
+    assert st.active is not None and st.active.motion.kind is OpKind.NAVIGATE
+    assert seq.tick(st, t + 0.5, X) is st and seq.tick(st, t + 1.0, X) is st
+    moved = seq.tick(st, t + 1.5, _kinematic(seq, st, X))  # at rest at the end of its leg: the next leg or done
+    assert moved is not st
+    assert moved.active is not st.active or len(moved.primitives) == len(st.primitives) + 1
