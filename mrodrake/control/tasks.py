@@ -23,8 +23,9 @@ from mrodrake.scenario import Scenario
 #: circle by up to 2e-2 along door-jamb arcs and entities slipped through jambs in the property tests (2 of
 #: 25 still did with 0.2, none with 0.1); 0.1 divides the error by ~10.  Holes (obstacle corners, disks)
 #: collapse to points instead and the map's blob refinement re-solves any whose image is too large, so their
-#: curved parts take 0.2 (on case study I: ~20 % fewer panels, half the build time, images ≤ 0.06 of their
-#: separation against the 0.08 that triggers a re-solve).
+#: curved parts take 0.2 where that is at most 0.1 x their gap to the nearest other boundary (``PointWorldMap.
+#: build``'s ``curved_gap_fraction``; on case study I: ~20 % fewer panels, half the build time of a navigation
+#: map, images ≤ 0.07 of their separation against the 0.08 that triggers a re-solve).
 MAP_OPTIONS = {"curvature_fraction": 0.1, "hole_curvature_fraction": 0.2, "hole_refinement": 1.0}
 
 
