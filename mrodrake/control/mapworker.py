@@ -8,13 +8,16 @@ compiled assembly's result does not depend on its thread count), and sends it ba
 A map taken from the worker is therefore the map the mission would have built itself: a request changes when
 a map is ready, never which map a motion gets.  The worker reads length-prefixed pickles on its standard
 input and writes its results on its standard output; it ignores Ctrl-C (the parent handles it) and ends when
-its input closes, i.e. with the process that started it.
+its input closes, i.e. with the process that started it, or after :data:`IDLE_EXIT` seconds without a request
+(a notebook kernel keeps no idle worker and its solve buffers; the next request starts a new one, and a request
+that met a worker on its way out fails, so the mission builds that map itself).
 """
 
 from __future__ import annotations
 
 import os
 import pickle
+import select
 import signal
 import struct
 import subprocess
@@ -27,6 +30,8 @@ import shapely
 from mrodrake.control.pointworld import PointWorldMap
 
 _HEADER = struct.Struct("<Q")
+#: Seconds without a request after which a worker ends.
+IDLE_EXIT = 120.0
 
 
 def _send(stream, obj) -> None:
@@ -36,25 +41,31 @@ def _send(stream, obj) -> None:
     stream.flush()
 
 
+def _read_exact(stream, size: int) -> bytes:
+    """``size`` bytes from ``stream`` (EOFError if it closes first); works on unbuffered streams too."""
+    chunks, left = [], size
+    while left > 0:
+        chunk = stream.read(left)
+        if not chunk:
+            raise EOFError
+        chunks.append(chunk)
+        left -= len(chunk)
+    return b"".join(chunks)
+
+
 def _receive(stream):
     """The next pickled object on ``stream`` (EOFError when it has closed)."""
-    head = stream.read(_HEADER.size)
-    if len(head) < _HEADER.size:
-        raise EOFError
-    size = _HEADER.unpack(head)[0]
-    data = stream.read(size)
-    if len(data) < size:
-        raise EOFError
-    return pickle.loads(data)
+    size = _HEADER.unpack(_read_exact(stream, _HEADER.size))[0]
+    return pickle.loads(_read_exact(stream, size))
 
 
 class MapWorker:
     """A worker process building point-world maps; :meth:`submit` returns a Future of the map."""
 
-    def __init__(self):
+    def __init__(self, idle_exit: float = IDLE_EXIT):
         env = dict(os.environ, OPENBLAS_NUM_THREADS="1", OMP_NUM_THREADS="1", MKL_NUM_THREADS="1")
-        self._proc = subprocess.Popen([sys.executable, "-m", "mrodrake.control.mapworker"], stdin=subprocess.PIPE,
-                                      stdout=subprocess.PIPE, env=env, close_fds=True)
+        self._proc = subprocess.Popen([sys.executable, "-m", "mrodrake.control.mapworker", repr(float(idle_exit))],
+                                      stdin=subprocess.PIPE, stdout=subprocess.PIPE, env=env, close_fds=True)
         self._pid = os.getpid()
         self._lock, self._send_lock = threading.Lock(), threading.Lock()
         self._pending: dict[int, Future] = {}
@@ -124,15 +135,18 @@ def map_worker() -> MapWorker:
         return w
 
 
-def _serve() -> None:
-    """The worker's loop: build every requested map, answer (key, True, map) or (key, False, one-line error)."""
+def _serve(idle_exit: float) -> None:
+    """The worker's loop: build every requested map, answer (key, True, map) or (key, False, one-line error);
+    end when the input closes or after ``idle_exit`` seconds without a request."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     from threadpoolctl import threadpool_limits
 
     threadpool_limits(limits=1, user_api="blas")
-    stdin, stdout = sys.stdin.buffer, sys.stdout.buffer
+    stdin, stdout = sys.stdin.buffer.raw, sys.stdout.buffer  # unbuffered input: select sees every byte not read
     sys.stdout = sys.stderr  # nothing but results on the pipe
     while True:
+        if not select.select([stdin], [], [], idle_exit)[0]:
+            return
         try:
             key, wkb, options = _receive(stdin)
         except EOFError:
@@ -148,4 +162,4 @@ def _serve() -> None:
 
 
 if __name__ == "__main__":
-    _serve()
+    _serve(float(sys.argv[1]) if len(sys.argv) > 1 else IDLE_EXIT)

@@ -1,5 +1,5 @@
 """The map worker builds the very map the mission would have built itself, reports a failed build as an error
-of that request only, and a forked process gets a worker of its own."""
+of that request only, a forked process gets a worker of its own, and an idle worker ends."""
 
 from __future__ import annotations
 
@@ -64,3 +64,19 @@ def test_a_forked_process_gets_a_worker_of_its_own(free):
     child.join(timeout=60)
     assert child.exitcode == 0 and n > 0
     assert map_worker() is parent and parent.submit(free, MAP_OPTIONS).result(timeout=600).n_panels == n
+
+
+def test_an_idle_worker_ends_and_the_next_request_starts_another(free, monkeypatch):
+    import mrodrake.control.mapworker as mw
+
+    idle = mw.MapWorker(idle_exit=0.2)
+    assert idle.submit(free, MAP_OPTIONS).result(timeout=600).n_panels > 0  # a request resets the idle clock
+    assert idle._proc.wait(timeout=120) == 0  # then, with none for 0.2 s, it ends on its own
+    assert not idle.alive
+    late = idle.submit(free, MAP_OPTIONS)  # a request that meets an ended worker fails (the mission builds it)
+    with pytest.raises(RuntimeError):
+        late.result(timeout=600)
+    monkeypatch.setattr(mw, "_WORKER", idle)
+    fresh = mw.map_worker()
+    assert fresh is not idle and fresh.alive
+    assert fresh.submit(free, MAP_OPTIONS).result(timeout=600).n_panels > 0
