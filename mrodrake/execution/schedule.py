@@ -225,6 +225,32 @@ def dependency_graph(ts: TransitionSystem, words, placement: Placement,
     return tuple(jobs)
 
 
+def critical_path(preds: Sequence[Sequence[int]], durations: Sequence[float]) -> float:
+    """Makespan (s) of the schedule that starts every job the moment its predecessors ``preds[uid]`` (earlier
+    uids) are done, job uid lasting ``durations[uid]``: the shortest time concurrent execution can take on
+    that graph, motions never waiting for a corridor."""
+    finish: list[float] = []
+    for uid, d in enumerate(durations):
+        finish.append(max((finish[p] for p in preds[uid]), default=0.0) + float(d))
+    return max(finish, default=0.0)
+
+
+def makespan_bounds(jobs: Sequence[Job], durations: Sequence[float]) -> dict[str, float]:
+    """:func:`critical_path` of the job graph (``graph``) and of two weaker graphs with the same
+    ``durations``: without the shared-region rule (``bodies+task``: shared bodies and the task's group
+    chain) and with shared bodies only (``bodies``); ``sequential``: the sum.  The weaker graphs are not safe
+    to execute (they drop the spot and corridor argument); they bound what finer spatial resources, and
+    then a weaker task order, can gain on this plan."""
+    members: dict[int, list[int]] = {}
+    for j in jobs:
+        if j.visible:
+            members.setdefault(j.group, []).append(j.uid)
+    body = [[k.uid for k in jobs[: j.uid] if k.bodies & j.bodies] for j in jobs]
+    chain = [b + (members.get(j.group - 1, []) if j.group > 0 else []) for b, j in zip(body, jobs)]
+    return {"sequential": float(sum(durations)), "graph": critical_path([j.preds for j in jobs], durations),
+            "bodies+task": critical_path(chain, durations), "bodies": critical_path(body, durations)}
+
+
 def _component(geom, point: Point) -> Polygon | None:
     parts = list(geom.geoms) if hasattr(geom, "geoms") else [geom]
     return next((p for p in parts if isinstance(p, Polygon) and p.contains(point)), None)
