@@ -23,10 +23,20 @@ from hypothesis import strategies as st
 
 from mrodrake.control.freespace import Disk
 from mrodrake.errors import NoPlanFound, UserError
-from mrodrake.execution.schedule import Execution, assign_corridors, dependency_graph, motion_spots, task_order
+from mrodrake.execution.schedule import (
+    SPOT_LEG,
+    Corridor,
+    Execution,
+    assign_corridors,
+    dependency_graph,
+    motion_spots,
+    task_order,
+)
+from mrodrake.execution.sequencer import Motion
 from mrodrake.geometry import CONTROL_MARGIN
 from mrodrake.logic.lasso import evaluate_lasso
 from mrodrake.planning.generate import generate_scenario_data
+from mrodrake.planning.placement import OpKind
 from mrodrake.planning.plan import plan_scenario, task_words
 from mrodrake.planning.semantics import crossings
 from mrodrake.scenario import scenario_from_dict
@@ -134,6 +144,23 @@ def test_two_motions_leaving_one_region_get_disjoint_corridors_that_hold_their_s
     assert not a.body.intersects(b.body)
     for rq in reqs:
         assert got[rq.uid].body.contains(rq.spots[0]) and got[rq.uid].confine.contains(shapely.Point(rq.start))
+
+
+def test_local_legs_of_a_motion_on_a_spot_corridor_stay_in_its_spot_disk():
+    sc = hub("F (r1_p2 & r2_p3)")
+    plan = plan_scenario(sc, iterations=300, seed=0, layout_seed=0)
+    seq = Mission(sc, plan, execution="concurrent").sequencer
+    X = np.zeros((2, 4))
+    X[:, :2] = plan.placement.initial
+    job = next(j for j in seq.jobs if j.moves_between_regions)
+    start, goal = X[job.op.entity, :2], np.asarray(job.op.goal)
+    m = Motion(OpKind.NAVIGATE, job.op.entity, (), "c", "p", job.op.action.src, job.op.action.dst, 0.75,
+               tuple(start), tuple(goal), 0.0, 100.0, 1, None,
+               corridor=Corridor(None, shapely.Point(0, 0).buffer(1.0), (False, True), (True, False)))
+    c, R, _centers, _radii = seq._motion_world(X, m, m.src, 0.0)
+    assert np.allclose(c, start) and R == SPOT_LEG
+    c, R, _centers, _radii = seq._motion_world(X, m, m.dst, 2.0)  # the destination keeps its region and ring
+    assert np.allclose(c, seq.centers[m.dst]) and np.isclose(R, seq.region_radii[m.dst] + 2.0 - 0.75)
 
 
 def test_two_robots_whose_routes_cross_wait_for_each_other():
