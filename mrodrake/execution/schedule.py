@@ -7,7 +7,10 @@ are done; the predecessors of job j are the earlier jobs (in the sequential orde
 * share a body with it (robot, object, team member: one controller per body, and a grasp docks at the
   object's actual position);
 * share a region with it (source, destination, or the region of a release, grasp or room move: the spots
-  of the placement were chosen one primitive after another, each seeing the earlier ones where they end);
+  of the placement were chosen one primitive after another, each seeing the earlier ones where they end),
+  unless both are navigations or transports whose spots in every region they share keep the layout spacing
+  (:func:`motion_spots`: where each starts in its source and ends in its destination), so that each spot is
+  free whichever runs first;
 * or are *visible* to the task (a region-changing action some crossing of which AP_φ sees) and precede it
   in the chain of visible jobs.  Consecutive visible actions of one TS step form one *group* when every
   interleaving of all their crossings still reaches the plan's NBA state
@@ -18,14 +21,18 @@ are done; the predecessors of job j are the earlier jobs (in the sequential orde
 Corridors keep the paper's proof (Theorem 1 is for one mover among static obstacles).  The motions
 (navigations, transports) that are ready at one tick ask together (:func:`assign_corridors`).  One motion
 and nothing else moving: it runs on its whole free space F, and no other motion starts until it ends.
-Otherwise the floor not held by running motions is split into the Voronoi cells of the askers' grid routes;
-each motion gets its cell shrunk by its covering radius r, the margin and :data:`GAP` (its centre
-positions), if that still connects its start to its goal and holds its regions (with or without their
-approach rings).  Its point-world map is built on F ∩ corridor, a static free space: Theorem 1 applies to
-it alone, its bodies stay inside the cell (the map's margin covers the map's numerical error, as for
-walls), and cells are disjoint, so no two concurrent bodies meet.  Motions that get no corridor wait until
+Otherwise the floor not held by running motions is split into the Voronoi cells of the askers' grid routes
+and spot disks; each motion gets its cell shrunk by its covering radius r, the margin and :data:`GAP` (its
+centre positions), if that still connects its start to its goal and holds each of its two regions (with or
+without its approach ring) or, in a region it shares with another motion, the disk of radius
+:data:`SPOT_LEG` around its start (goal), in which its exit (settle) legs then run.  Its point-world map is
+built on F ∩ corridor, a static free space: Theorem 1 applies to it alone, its bodies stay inside the cell
+(the map's margin covers the map's numerical error, as for walls), and cells are disjoint, so no two
+concurrent bodies meet.  Motions that get no corridor wait until
 a job ends.  Releases, grasps and room moves stay inside their region, which no other running job touches,
-and every motion's F keeps r + margin off the regions other than its own two.
+and every motion's F keeps r + margin off the regions other than its own two.  Two motions that share a
+region run in it inside their own cells: the point-world law on F ∩ corridor, the local legs in their spot
+disks, which the cells hold.
 """
 
 from __future__ import annotations
@@ -36,11 +43,12 @@ from enum import Enum
 
 import numpy as np
 import shapely
+from shapely.errors import GEOSException
 from shapely.geometry import LineString, Point, Polygon
 
 from mrodrake.control.windows import grid_path
 from mrodrake.geometry import DISK_QUAD_SEGS
-from mrodrake.planning.placement import OpKind, PlacedOp, Placement
+from mrodrake.planning.placement import OpKind, PlacedOp, Placement, layout_slots
 from mrodrake.planning.semantics import bodies
 from mrodrake.planning.steps import StepSpec
 from mrodrake.ts import TransitionSystem
@@ -51,6 +59,9 @@ ROUTE_STEPS = (1.0, 0.5)
 ROUTE_SAMPLE = 1.0
 #: Extra gap (m) between the bodies' corridors of concurrent motions (polygon rounding).
 GAP = 0.05
+#: Radius (m) of the disk of centre positions around its start (its goal) in which a navigation or transport
+#: runs its exit (settle) legs when its corridor holds that disk but not its source (destination) region.
+SPOT_LEG = 1.0
 #: Most bodies whose crossings one task group may interleave (bounds the crossing lattice, 3^bodies nodes).
 GROUP_BODIES = 8
 
@@ -92,11 +103,14 @@ class Corridor:
     space; None: all of it, for a motion that runs alone), ``body`` everything its bodies may cover
     (``confine`` grown by the covering radius and the margin, and the approach disks it uses; the whole
     floor for a motion alone); ``rings``: whether it may use the approach ring of its source and of its
-    destination (else its local legs stay inside the region)."""
+    destination (else its local legs stay inside the region); ``spots``: whether its local legs in its source
+    (destination) stay in the disk of radius :data:`SPOT_LEG` around its start (goal) instead, the corridor
+    holding that disk but not the region (a region shared with another motion running at the same time)."""
 
     confine: Polygon | None
     body: Polygon
     rings: tuple[bool, bool] = (True, True)
+    spots: tuple[bool, bool] = (False, False)
 
 
 def op_bodies(ts: TransitionSystem, op: PlacedOp) -> frozenset:
@@ -206,23 +220,80 @@ def _joins(words, steps, block, s: int, own, accepting) -> bool:
     return _reaches(words, specs[0], specs[-1], acts)
 
 
+def motion_spots(ts: TransitionSystem, placement: Placement) -> list[dict[int, tuple[np.ndarray, float]]]:
+    """Per placed primitive of the run, in order: for a navigation or transport the disk (centre, radius) its
+    bodies cover in its source region where it starts and in its destination region where it ends (a
+    robot's disk, or a team's covering disk around its object: the members on their slots), as planned; {}
+    for the others."""
+    N = ts.N
+    pos = np.asarray(placement.initial, dtype=float).reshape(-1, 2).copy()
+    out: list[dict[int, tuple[np.ndarray, float]]] = []
+    for sp in placement.steps:
+        for op in sp.ops:
+            goal = np.asarray(op.goal, dtype=float)
+            if op.kind in (OpKind.NAVIGATE, OpKind.TRANSPORT):
+                a = op.action
+                r = (ts.robot_radius[a.robot] if op.kind is OpKind.NAVIGATE
+                     else ts.covering_radius(a.obj, tuple(a.team)))
+                out.append({a.src: (pos[op.entity].copy(), float(r)), a.dst: (goal, float(r))})
+            else:
+                out.append({})
+            pos[op.entity] = goal
+            if op.entity >= N and op.team:
+                pos[list(op.team)] = layout_slots(ts, op.entity - N, op.team, goal, op.rotation)
+    return out
+
+
+def _apart(a: dict, b: dict, shared: frozenset, spacing: float) -> bool:
+    """The spots of two motions in every region they share keep the layout spacing."""
+    return all(float(np.hypot(*(a[k][0] - b[k][0]))) >= a[k][1] + b[k][1] + spacing - 1e-9 for k in shared)
+
+
 def dependency_graph(ts: TransitionSystem, words, placement: Placement,
                      order: TaskOrder | None = None) -> tuple[Job, ...]:
     """The jobs of ``placement`` with their predecessors (module docstring)."""
     order = task_order(words, placement) if order is None else order
+    spots = motion_spots(ts, placement)
     jobs: list[Job] = []
     members: dict[int, list[int]] = {}
     for s, sp in enumerate(placement.steps):
         for k, op in enumerate(sp.ops):
             uid = len(jobs)
             b, r, g = op_bodies(ts, op), op_regions(op), order.group.get((s, k), -1)
-            preds = [j.uid for j in jobs if j.bodies & b or j.regions & r]
+            preds = [j.uid for j in jobs if j.bodies & b or (j.regions & r and not (
+                spots[uid] and spots[j.uid] and _apart(spots[uid], spots[j.uid], j.regions & r, ts.spacing)))]
             if g > 0:
                 preds.extend(members.get(g - 1, ()))
             if g >= 0:
                 members.setdefault(g, []).append(uid)
             jobs.append(Job(uid, s, op, b, r, g, tuple(sorted(set(preds)))))
     return tuple(jobs)
+
+
+def critical_path(preds: Sequence[Sequence[int]], durations: Sequence[float]) -> float:
+    """Makespan (s) of the schedule that starts every job the moment its predecessors ``preds[uid]`` (earlier
+    uids) are done, job uid lasting ``durations[uid]``: the shortest time concurrent execution can take on
+    that graph, motions never waiting for a corridor."""
+    finish: list[float] = []
+    for uid, d in enumerate(durations):
+        finish.append(max((finish[p] for p in preds[uid]), default=0.0) + float(d))
+    return max(finish, default=0.0)
+
+
+def makespan_bounds(jobs: Sequence[Job], durations: Sequence[float]) -> dict[str, float]:
+    """:func:`critical_path` of the job graph (``graph``) and of two weaker graphs with the same
+    ``durations``: without the shared-region rule (``bodies+task``: shared bodies and the task's group
+    chain) and with shared bodies only (``bodies``); ``sequential``: the sum.  The weaker graphs are not safe
+    to execute (they drop the spot and corridor argument); they bound what finer spatial resources, and
+    then a weaker task order, can gain on this plan."""
+    members: dict[int, list[int]] = {}
+    for j in jobs:
+        if j.visible:
+            members.setdefault(j.group, []).append(j.uid)
+    body = [[k.uid for k in jobs[: j.uid] if k.bodies & j.bodies] for j in jobs]
+    chain = [b + (members.get(j.group - 1, []) if j.group > 0 else []) for b, j in zip(body, jobs)]
+    return {"sequential": float(sum(durations)), "graph": critical_path([j.preds for j in jobs], durations),
+            "bodies+task": critical_path(chain, durations), "bodies": critical_path(body, durations)}
 
 
 def _component(geom, point: Point) -> Polygon | None:
@@ -234,7 +305,8 @@ def _component(geom, point: Point) -> Polygon | None:
 class Request:
     """A navigation or transport that may start now: its job, its free space F (centre positions, with
     every entity not in motion as a hole), start, goal, covering radius and the disks of its source and
-    destination regions, each with and without its approach ring (body extent)."""
+    destination regions, each with and without its approach ring (body extent), and the disks of radius
+    :data:`SPOT_LEG` around its start and its goal grown by its radius (None: the regions only)."""
 
     uid: int
     free: Polygon
@@ -242,6 +314,7 @@ class Request:
     goal: np.ndarray
     radius: float
     regions: tuple[tuple[Polygon, Polygon], tuple[Polygon, Polygon]]
+    spots: tuple[Polygon, Polygon] | None = None
 
 
 def _route(rq: Request, room: Polygon) -> np.ndarray | None:
@@ -256,26 +329,39 @@ def _route(rq: Request, room: Polygon) -> np.ndarray | None:
     return None
 
 
-def _cells(routes: dict[int, np.ndarray], available: Polygon) -> dict[int, Polygon]:
-    """The Voronoi cells of the routes (points closer to one route than to every other) within ``available``."""
-    if len(routes) == 1:
-        return {uid: available for uid in routes}
+def _line(path: np.ndarray):
+    return LineString(path) if len(path) > 1 else Point(path[0])
+
+
+def _sites(rq: Request, path: np.ndarray) -> np.ndarray:
+    """The points whose Voronoi cells are the motion's: its route every :data:`ROUTE_SAMPLE`, and the rims of
+    the disks around its start and its goal that its local legs may use (so a route of another motion that
+    passes near its spot does not cut into that disk)."""
+    line = _line(path)
+    n = max(2, int(line.length / ROUTE_SAMPLE) + 1)
+    pts = [(p.x, p.y) for p in (line.interpolate(d) for d in np.linspace(0.0, line.length, n))]
+    for spot in rq.spots or ():
+        pts.extend(spot.exterior.coords[:-1])
+    return np.array(pts, dtype=float)
+
+
+def _cells(sites: dict[int, np.ndarray], available: Polygon) -> dict[int, Polygon]:
+    """The Voronoi cells of the motions' ``sites`` (points closer to one motion's sites than to every other's)
+    within ``available``."""
+    if len(sites) == 1:
+        return {uid: available for uid in sites}
     pts, owner = [], []
-    for uid, path in routes.items():
-        line = LineString(path) if len(path) > 1 else Point(path[0])
-        n = max(2, int(line.length / ROUTE_SAMPLE) + 1)
-        for d in np.linspace(0.0, line.length, n):
-            p = line.interpolate(d)
-            pts.append((p.x, p.y))
-            owner.append(uid)
+    for uid, arr in sites.items():
+        pts.extend(map(tuple, arr))
+        owner.extend([uid] * len(arr))
     pts_arr = np.unique(np.round(np.array(pts), 6), axis=0, return_index=True)
     keep = sorted(pts_arr[1])
     pts, owner = [pts[i] for i in keep], [owner[i] for i in keep]
     cells = shapely.voronoi_polygons(shapely.MultiPoint(pts), extend_to=available, ordered=True)
-    out: dict[int, list] = {uid: [] for uid in routes}
+    out: dict[int, list] = {uid: [] for uid in sites}
     for cell, uid in zip(cells.geoms, owner):
         out[uid].append(cell)
-    return {uid: shapely.union_all(c).intersection(available) for uid, c in out.items()}
+    return {uid: shapely.make_valid(shapely.union_all(c).intersection(available)) for uid, c in out.items()}
 
 
 def assign_corridors(requests: Sequence[Request], floor: Polygon, busy: Polygon | None,
@@ -283,13 +369,14 @@ def assign_corridors(requests: Sequence[Request], floor: Polygon, busy: Polygon 
     """Corridors for the motions of ``requests`` that can start together now (module docstring); ``busy``:
     the bodies' corridors of the motions running (None: none).  One motion and nothing running: the whole
     floor, unconfined.  Otherwise the floor not held by running motions is split into the Voronoi cells of
-    the requests' routes; a motion gets its cell shrunk by its covering radius, the margin and :data:`GAP`
-    (its centre positions) if that connects its start to its goal and holds its regions' approach disks.
-    Motions without one are left out and the cells drawn again for the others; they wait."""
+    the requests' routes and spot disks (:func:`_sites`); a motion gets its cell shrunk by its covering
+    radius, the margin and :data:`GAP` (its centre positions) if that connects its start to its goal and holds
+    its regions' approach disks, its regions, or the disks of radius :data:`SPOT_LEG` around its start and
+    goal.  Motions without one are left out and the cells drawn again for the others; they wait."""
     alone = {requests[0].uid: Corridor(None, floor)} if busy is None else {}
     if busy is None and len(requests) == 1:
         return alone
-    available = floor if busy is None else floor.difference(busy)
+    available = floor if busy is None else shapely.make_valid(floor.difference(busy))
     members = list(requests)
     while members:
         routes = {}
@@ -302,10 +389,13 @@ def assign_corridors(requests: Sequence[Request], floor: Polygon, busy: Polygon 
             return alone
         if busy is None and len(members) == 1:
             return {members[0].uid: Corridor(None, floor)}
-        cells = _cells(routes, available)
+        cells = _cells({rq.uid: _sites(rq, routes[rq.uid]) for rq in members}, available)
         out, failed = {}, []
         for rq in members:
-            got = _corridor_in(rq, cells[rq.uid], margin)
+            try:
+                got = _corridor_in(rq, cells[rq.uid], margin)
+            except GEOSException:  # a cell too degenerate to shrink: no corridor in it
+                got = None
             if got is None:
                 failed.append(rq.uid)
             else:
@@ -321,15 +411,19 @@ def _corridor_in(rq: Request, cell: Polygon, margin: float) -> Corridor | None:
     confine = _component(rq.free.intersection(cell.buffer(-(rq.radius + margin + GAP))), Point(rq.start))
     if confine is None or not confine.contains(Point(rq.goal)):
         return None
-    rings, used = [], []
-    for ring, region in rq.regions:
+    rings, spots, used = [], [], []
+    for (ring, region), spot in zip(rq.regions, rq.spots or (None, None)):
         if cell.contains(ring):
             rings.append(True)
             used.append(ring)
         elif cell.contains(region):
             rings.append(False)
             used.append(region)
+        elif spot is not None and cell.contains(spot):
+            rings.append(False)
+            used.append(spot)
         else:
             return None
+        spots.append(used[-1] is spot)
     body = shapely.union_all([confine.buffer(rq.radius + margin, quad_segs=DISK_QUAD_SEGS), *used])
-    return Corridor(confine, body, (rings[0], rings[1]))
+    return Corridor(confine, body, (rings[0], rings[1]), (spots[0], spots[1]))

@@ -33,6 +33,7 @@ from enum import Enum
 
 import numpy as np
 import shapely
+from shapely.errors import GEOSException
 
 from mrodrake.control.adaptive import AdaptiveGains
 from mrodrake.control.freespace import Disk, entity_free_space
@@ -54,6 +55,7 @@ from mrodrake.errors import UserError
 from mrodrake.execution.commands import PrimitiveRecord, SyncCommand, TaskCommand
 from mrodrake.execution.monitor import WordMonitor, entity_regions, label_of
 from mrodrake.execution.schedule import (
+    SPOT_LEG,
     Corridor,
     Execution,
     Job,
@@ -475,25 +477,34 @@ class Sequencer:
                                                                                              act.obj)
             else:
                 continue
-            others = self._disks(X, {entity, *team})
             try:
-                free = entity_free_space(self.scenario, radius, X[entity, :2], op.goal, act.src, act.dst, others)
+                requests.append(self._request(a.uid, op, X[entity, :2], radius, self._disks(X, {entity, *team})))
             except UserError:  # alone, the motion starts and reports why it cannot move; else it waits
                 if not any(b.motion is not None for b in ed.running):
                     ed.grants[a.uid] = Corridor(None, self._floor)
                 failed.add(a.uid)
-                continue
-            regions = tuple((disk(self.centers[k], self.region_radii[k] + self.approach[k]),
-                             disk(self.centers[k], self.region_radii[k])) for k in (act.src, act.dst))
-            requests.append(Request(a.uid, free.polygon, X[entity, :2].copy(), np.asarray(op.goal, dtype=float),
-                                    radius, regions))
         held = [a.motion.corridor.body for a in ed.running if a.motion is not None and a.motion.corridor is not None]
         busy = shapely.union_all(held) if held else None
         if requests:
-            ed.grants.update(assign_corridors(requests, self._floor, busy, self.margin))
+            try:
+                ed.grants.update(assign_corridors(requests, self._floor, busy, self.margin))
+            except GEOSException:  # degenerate cells: the first asker alone when nothing moves, else all wait
+                if busy is None:
+                    ed.grants[requests[0].uid] = Corridor(None, self._floor)
         asked = {rq.uid for rq in requests} | failed
         ed.running = [replace(a, tried=ed.corridors) if a.uid in asked and a.uid not in ed.grants else a
                       for a in ed.running]
+
+    def _request(self, uid: int, op: PlacedOp, start: np.ndarray, radius: float, others: list[Disk]) -> Request:
+        """The corridor request of the navigation or transport ``op`` (job ``uid``) from ``start`` with the
+        entities ``others`` parked; raises UserError when its free space does not hold its start and goal."""
+        act = op.action
+        free = entity_free_space(self.scenario, radius, start, op.goal, act.src, act.dst, others)
+        regions = tuple((disk(self.centers[k], self.region_radii[k] + self.approach[k]),
+                         disk(self.centers[k], self.region_radii[k])) for k in (act.src, act.dst))
+        spots = tuple(disk(p, SPOT_LEG + radius) for p in (start, op.goal))
+        return Request(uid, free.polygon, np.array(start, dtype=float), np.asarray(op.goal, dtype=float), radius,
+                       regions, spots)
 
     def _end_step(self, ed: _Edit, X: np.ndarray) -> None:
         spec = self.steps[ed.step_idx]
@@ -636,6 +647,16 @@ class Sequencer:
         centers, radii = disk_obstacles(X, self.radii, radius, [entity, *exclude], c, R)
         return c, R, centers, radii
 
+    def _motion_world(self, X: np.ndarray, m: Motion, k: int, extra: float):
+        """:meth:`_local_world` of motion ``m`` in its region k (its source or destination) with the rim grown by
+        ``extra``; on a corridor that holds only the disk of radius SPOT_LEG around its start (k the source) or
+        its goal (the destination), that disk (:class:`~mrodrake.execution.schedule.Corridor`)."""
+        if m.corridor is None or not m.corridor.spots[0 if k == m.src else 1]:
+            return self._local_world(X, m.entity, m.radius, k, m.team, extra)
+        c = np.asarray(m.start if k == m.src else m.goal, dtype=float)
+        centers, radii = disk_obstacles(X, self.radii, m.radius, [m.entity, *m.team], c, SPOT_LEG)
+        return c, SPOT_LEG, centers, radii
+
     def _ring(self, m: Motion, k: int) -> float:
         """Width of the approach ring of region k (the source or destination of ``m``) that ``m`` may use."""
         if m.corridor is None or m.corridor.rings[0 if k == m.src else 1]:
@@ -671,7 +692,7 @@ class Sequencer:
         clear of every other entity, when the start is nearer than that to one (None: not needed, or no path;
         the point-world law then starts where the entity is)."""
         ring = self._ring(m, m.src)
-        c, R, centers, radii = self._local_world(X, m.entity, m.radius, m.src, m.team, ring)
+        c, R, centers, radii = self._motion_world(X, m, m.src, ring)
         x = X[m.entity, :2]
         if not len(centers) or np.min(np.linalg.norm(centers - x, axis=1) - radii) >= self.margin:
             return None
@@ -688,7 +709,7 @@ class Sequencer:
         maps outside the circle barrier ρ₀ (a spacing from an entity whose grown disk merges with the walls lies
         in the outer boundary's band) first departs on local legs inside the source region to the nearest point
         that maps inside it (:func:`~mrodrake.control.tasks.departure_point`), once."""
-        entity, radius, team = m.entity, m.radius, m.team
+        entity, team = m.entity, m.team
         movers = {entity} | set(team)
         others = self._disks(X, movers)
         start, src = X[entity, :2].copy(), m.src
@@ -700,7 +721,7 @@ class Sequencer:
             pw = self._map(free)
             self._prefetch(ed, X)
             if not m.departed and not inside_circle(pw, start)[0]:
-                c, R, centers, radii = self._local_world(X, entity, radius, src, team)
+                c, R, centers, radii = self._motion_world(X, m, src, 0.0)
                 point = departure_point(pw, free, centers, radii, c, R, self.dock_tol)
                 if point is not None:  # reachable by a local path (departure_point checked it)
                     legs = local_path(start, point, centers, radii, c, R)
@@ -864,8 +885,10 @@ class Sequencer:
             self._maps.popitem(last=False)
 
     def _leg_task(self, X: np.ndarray, m: Motion):
-        c, R, centers, radii = self._local_world(X, m.entity, m.radius, m.src if m.exiting else m.dst, m.team,
-                                                 m.extra)
+        if m.kind in (OpKind.NAVIGATE, OpKind.TRANSPORT):
+            c, R, centers, radii = self._motion_world(X, m, m.src if m.exiting else m.dst, m.extra)
+        else:
+            c, R, centers, radii = self._local_world(X, m.entity, m.radius, m.src, m.team, m.extra)
         ctrl = self.scenario.control
         # a team of n robots and its object has n + 1 bodies whose friction bounds add up (α_A = Σ α):
         # k_v_local per body keeps the velocity loop damped (tests/control/test_local.py)
@@ -907,11 +930,11 @@ class Sequencer:
             return m
         k, x = m.dst, X[m.entity, :2]
         ring = self._ring(m, k)
-        depth = self.region_radii[k] + ring - math.hypot(*(x - self.centers[k])) - m.radius
+        c, R, centers, radii = self._motion_world(X, m, k, ring)
+        depth = R - math.hypot(*(x - c))
         slow = math.hypot(*X[m.entity, 2:]) <= self.rest_speed
         if depth < SETTLE_DEPTH and not (slow and depth >= 0.1 * SETTLE_DEPTH):
             return m
-        c, R, centers, radii = self._local_world(X, m.entity, m.radius, k, m.team, ring)
         try:
             legs = local_path(x, np.asarray(m.goal), centers, radii, c, R)
         except ValueError:

@@ -1,7 +1,10 @@
 """Concurrent execution: the job dependency graph, corridors, and the executed words it can produce.
 
 * two robots crossing a floor on separate lanes move at the same time, each inside its corridor, far from
-  the other; two whose routes cross wait for each other (no overlap in time);
+  the other; two whose routes cross wait for each other (no overlap in time); two leaving one region in
+  opposite directions move at the same time;
+* two jobs the graph leaves unordered share no body, and share a region only as two motions whose spots there
+  keep the layout spacing (so every spot of the placement is free whichever runs first);
 * a safety clause that one interleaving of two concurrent crossings would violate keeps the two in the plan's
   order;
 * on random small plans, every executed word a concurrent run can produce (random linear extensions of the
@@ -18,11 +21,22 @@ import shapely
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
+from mrodrake.control.freespace import Disk
 from mrodrake.errors import NoPlanFound, UserError
-from mrodrake.execution.schedule import Execution, dependency_graph, task_order
+from mrodrake.execution.schedule import (
+    SPOT_LEG,
+    Corridor,
+    Execution,
+    assign_corridors,
+    dependency_graph,
+    motion_spots,
+    task_order,
+)
+from mrodrake.execution.sequencer import Motion
 from mrodrake.geometry import CONTROL_MARGIN
 from mrodrake.logic.lasso import evaluate_lasso
 from mrodrake.planning.generate import generate_scenario_data
+from mrodrake.planning.placement import OpKind
 from mrodrake.planning.plan import plan_scenario, task_words
 from mrodrake.planning.semantics import crossings
 from mrodrake.scenario import scenario_from_dict
@@ -48,6 +62,18 @@ def lanes(formula: str):
 def open_floor(formula: str):
     """An empty 40 m x 40 m floor: p1 (NW), p2 (SE), p3 (NE), p4 (SW); p1 -> p2 and p3 -> p4 cross."""
     return _floor("open", [[0, 0], [40, 0], [40, 40], [0, 40]], [], [[5, 35], [35, 5], [35, 35], [5, 5]], formula)
+
+
+def hub(formula: str):
+    """A 70 m x 30 m empty floor: p1 (radius 6 m) in the middle holds both robots, p2 west, p3 east."""
+    return scenario_from_dict({
+        "name": "hub", "workspace": {"boundary": [[0, 0], [70, 0], [70, 30], [0, 30]], "obstacles": []},
+        "regions": [{"name": "p1", "center": [35, 15], "radius": 6.0},
+                    {"name": "p2", "center": [5, 15], "radius": 3.0},
+                    {"name": "p3", "center": [65, 15], "radius": 3.0}],
+        "robots": [{"name": "r1", "mass": 1.0, "radius": 0.75, "power": 2, "initial_region": "p1"},
+                   {"name": "r2", "mass": 1.2, "radius": 0.75, "power": 2, "initial_region": "p1"}],
+        "objects": [], "task": {"formula": formula}})
 
 
 def _mission(sc, execution):
@@ -88,6 +114,55 @@ def test_two_robots_on_separate_lanes_move_at_the_same_time_inside_their_corrido
     assert log.sim_seconds < seq.sim_seconds
 
 
+def test_two_robots_leaving_one_region_in_opposite_directions_move_at_the_same_time():
+    log = _mission(hub("F (r1_p2 & r2_p3)"), "concurrent")
+    iv = _intervals(log)
+    (a0, a1), (b0, b1) = iv["navigate r1 p1->p2"], iv["navigate r2 p1->p3"]
+    assert max(a0, b0) < min(a1, b1)
+    tr = log.trajectory
+    for rec in log.primitives:
+        seg = tr[(tr.entity == rec.entity) & (tr.t >= rec.t_start) & (tr.t <= rec.t_end)][["x", "y"]].to_numpy()
+        assert np.max(shapely.distance(rec.free.polygon, shapely.points(seg))) <= CONTROL_MARGIN
+    free = [rec.free.polygon.buffer(0.75 + CONTROL_MARGIN) for rec in log.primitives]
+    assert not free[0].intersects(free[1])
+    assert _gap(log, "r1", "r2") > 0.0
+
+
+def test_two_motions_leaving_one_region_get_disjoint_corridors_that_hold_their_spot_disks():
+    sc = hub("F (r1_p2 & r2_p3)")
+    plan = plan_scenario(sc, iterations=300, seed=0, layout_seed=0)
+    seq = Mission(sc, plan, execution="concurrent").sequencer
+    X = np.asarray(plan.placement.initial, dtype=float)
+    moves = [j for j in seq.jobs if j.moves_between_regions]
+    assert not moves[0].preds and not moves[1].preds
+    reqs = [seq._request(j.uid, j.op, X[j.op.entity], 0.75,
+                         [Disk(f"e{e}", tuple(X[e]), 0.75) for e in range(2) if e != j.op.entity]) for j in moves]
+    got = assign_corridors(reqs, seq._floor, None, seq.margin)
+    assert set(got) == {j.uid for j in moves}
+    a, b = (got[j.uid] for j in moves)
+    assert a.spots[0] and b.spots[0]  # p1 is split: each holds the disk around its start, not the region
+    assert not a.body.intersects(b.body)
+    for rq in reqs:
+        assert got[rq.uid].body.contains(rq.spots[0]) and got[rq.uid].confine.contains(shapely.Point(rq.start))
+
+
+def test_local_legs_of_a_motion_on_a_spot_corridor_stay_in_its_spot_disk():
+    sc = hub("F (r1_p2 & r2_p3)")
+    plan = plan_scenario(sc, iterations=300, seed=0, layout_seed=0)
+    seq = Mission(sc, plan, execution="concurrent").sequencer
+    X = np.zeros((2, 4))
+    X[:, :2] = plan.placement.initial
+    job = next(j for j in seq.jobs if j.moves_between_regions)
+    start, goal = X[job.op.entity, :2], np.asarray(job.op.goal)
+    m = Motion(OpKind.NAVIGATE, job.op.entity, (), "c", "p", job.op.action.src, job.op.action.dst, 0.75,
+               tuple(start), tuple(goal), 0.0, 100.0, 1, None,
+               corridor=Corridor(None, shapely.Point(0, 0).buffer(1.0), (False, True), (True, False)))
+    c, R, _centers, _radii = seq._motion_world(X, m, m.src, 0.0)
+    assert np.allclose(c, start) and R == SPOT_LEG
+    c, R, _centers, _radii = seq._motion_world(X, m, m.dst, 2.0)  # the destination keeps its region and ring
+    assert np.allclose(c, seq.centers[m.dst]) and np.isclose(R, seq.region_radii[m.dst] + 2.0 - 0.75)
+
+
 def test_two_robots_whose_routes_cross_wait_for_each_other():
     log = _mission(open_floor("F (r1_p2 & r2_p4)"), "concurrent")
     (a0, a1), (b0, b1) = _intervals(log).values()
@@ -121,6 +196,36 @@ def test_the_mission_rejects_an_unknown_execution_mode():
     with pytest.raises(UserError, match="--execution"):
         Mission(sc, plan, execution="parallel")
     assert Mission(sc, plan, execution="concurrent").sequencer.execution is Execution.CONCURRENT
+
+
+def _ordered(jobs) -> list[set[int]]:
+    """For every job, the jobs it waits for directly or through others."""
+    before: list[set[int]] = []
+    for j in jobs:
+        before.append(set(j.preds).union(*(before[p] for p in j.preds)))
+    return before
+
+
+@settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(n=st.integers(2, 4), m=st.integers(0, 2), k=st.integers(3, 4), seed=st.integers(0, 10_000))
+def test_jobs_left_unordered_keep_apart(n, m, k, seed):
+    sc = scenario_from_dict(generate_scenario_data(n, m, k, seed))
+    try:
+        plan = plan_scenario(sc, iterations=300, seed=seed, layout_seed=seed)
+    except (NoPlanFound, UserError):
+        return
+    _f, _nba, words = task_words(sc, plan.ts)
+    jobs = dependency_graph(plan.ts, words, plan.placement)
+    spots = motion_spots(plan.ts, plan.placement)
+    before = _ordered(jobs)
+    for a, b in itertools.combinations(jobs, 2):
+        if a.uid in before[b.uid]:
+            continue
+        assert not a.bodies & b.bodies
+        for r in a.regions & b.regions:
+            assert a.moves_between_regions and b.moves_between_regions
+            (ca, ra), (cb, rb) = spots[a.uid][r], spots[b.uid][r]
+            assert np.hypot(*(ca - cb)) >= ra + rb + plan.ts.spacing - 1e-9
 
 
 # ------------------------------------------------------------------------------------------ words
