@@ -39,15 +39,17 @@ import numpy as np
 from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import breadth_first_order
 
-from mrodrake.geometry import RegionGraph, grasp_layout, polygon
+from mrodrake.geometry import TEAM_TRAVEL_SLACK, RegionGraph, grasp_layout, polygon
 from mrodrake.packing import entities_fit
 from mrodrake.scenario import Scenario
 
 
-def _no_passage(margin: float) -> str:
+def _no_passage(margin: float, team: bool = False) -> str:
     """Why a travel is blocked: free space is the workspace minus walls, obstacles and other regions grown by
-    the entity's radius plus the controllers' margin (``control.margin``)."""
-    return ("no passage wide enough (walls, obstacles and other regions grown by the radius + control.margin "
+    the entity's radius (a team's: its covering radius plus the docking slack) plus the controllers' margin
+    (``control.margin``)."""
+    radius = f"the covering radius + slack {TEAM_TRAVEL_SLACK:g} m" if team else "the radius"
+    return (f"no passage wide enough (walls, obstacles and other regions grown by {radius} + control.margin "
             f"{margin:g} m)")
 
 State = tuple
@@ -199,6 +201,12 @@ class TransitionSystem:
             self._cover[key] = r
         return r
 
+    def travel_radius(self, j: int, team: tuple[int, ...]) -> float:
+        """Radius of object j carried by ``team`` wherever its travel between regions is checked: the covering
+        radius plus :data:`~mrodrake.geometry.TEAM_TRAVEL_SLACK` (the members dock within a tolerance of their
+        slots)."""
+        return self.covering_radius(j, team) + TEAM_TRAVEL_SLACK
+
     @property
     def region_graph(self) -> RegionGraph:
         if self._graph is None:
@@ -232,7 +240,7 @@ class TransitionSystem:
             if isinstance(a, Navigate):
                 r = self.robot_radius[a.robot]
             elif isinstance(a, Transport):
-                r = self.covering_radius(a.obj, a.team)
+                r = self.travel_radius(a.obj, a.team)
             else:
                 continue
             if not self.connected(r, a.src, a.dst):
@@ -241,8 +249,10 @@ class TransitionSystem:
                 else:
                     who = (f"object {self.object_names[a.obj]} with team "
                            f"{'+'.join(self.robot_names[i] for i in a.team)}")
-                return (f"{who} (radius {r:.2f} m) cannot travel from {self.region_names[a.src]} to "
-                        f"{self.region_names[a.dst]}: {_no_passage(self.margin)}")
+                size = f"radius {r:.2f} m" if isinstance(a, Navigate) else \
+                    f"covering radius {self.covering_radius(a.obj, a.team):.2f} m"
+                return (f"{who} ({size}) cannot travel from {self.region_names[a.src]} to "
+                        f"{self.region_names[a.dst]}: {_no_passage(self.margin, isinstance(a, Transport))}")
         return None
 
     def reach(self, radius: float, k: int) -> list[int]:
@@ -303,10 +313,11 @@ class TransitionSystem:
                            f"in any region (smallest covering radius {r:.2f} m, largest "
                            f"region radius {max(self.region_radius):.2f} m)")
                 continue
-            miss = [names[m] for m in range(self.K) if m not in self.reach(r, k)]
+            miss = [names[m] for m in range(self.K) if m not in self.reach(r + TEAM_TRAVEL_SLACK, k)]
             if miss:
                 out.append(f"object {self.object_names[j]} can never be carried to {', '.join(miss)} from "
-                           f"{names[k]}: {_no_passage(self.margin)} for its smallest team (covering radius {r:.2f} m)")
+                           f"{names[k]}: {_no_passage(self.margin, True)} for its smallest team (covering radius "
+                           f"{r:.2f} m)")
         return out
 
     def estimate_size(self, samples: int = 300, per_state: int = 24, seed: int = 0) -> SizeEstimate:
@@ -325,7 +336,7 @@ class TransitionSystem:
         for j in range(M):
             best = self.smallest_team(j)
             k = self.initial[N + j]
-            obj_dom.append(self.reach(best[1], k) if best is not None else [k])
+            obj_dom.append(self.reach(best[1] + TEAM_TRAVEL_SLACK, k) if best is not None else [k])
         obj_weight = math.prod(len(d) for d in obj_dom)
         states = transitions = 0.0
         for _ in range(samples):
@@ -723,7 +734,7 @@ class TransitionSystem:
         obj_opts = []
         for j in range(M):
             if team_power[j] > 0 and team_power[j] >= self.required_power[j]:
-                C = self.connections(self.covering_radius(j, teams[j]))
+                C = self.connections(self.travel_radius(j, teams[j]))
                 obj_opts.append([O[j]] + [k for k in range(K) if k != O[j] and C[O[j], k]])
             else:
                 obj_opts.append([O[j]])
@@ -1050,7 +1061,7 @@ class TransitionSystem:
                 dests = carry.get((j, key))
                 if dests is None:
                     members, o = divmod(key, K)
-                    C = self.connections(self.covering_radius(j, tuple(i for i in range(N) if members >> i & 1)))
+                    C = self.connections(self.travel_radius(j, tuple(i for i in range(N) if members >> i & 1)))
                     dests = carry[(j, key)] = [o] + [k for k in range(K) if k != o and C[o, k]]
                 sel = h[inv == u]
                 opts[sel, j, :len(dests)] = dests

@@ -62,8 +62,28 @@ def test_validate_reports_the_blocked_travel(tmp_path, capsys):
     out = capsys.readouterr().out.strip().splitlines()
     assert out[0].startswith(f"{path}: ok")
     assert out[1:] == [f"{path}: object o1 can never be carried to p2 from p1: no passage wide enough (walls, "
-                       "obstacles and other regions grown by the radius + control.margin 0.5 m) for its smallest "
-                       "team (covering radius 1.90 m)"]
+                       "obstacles and other regions grown by the covering radius + slack 0.05 m + control.margin "
+                       "0.5 m) for its smallest team (covering radius 1.90 m)"]
+
+
+@pytest.mark.parametrize("passage, passes", [(4.87, False), (4.95, True)])
+def test_a_team_passes_a_door_only_with_its_docking_slack(passage, passes):
+    """The members of a team dock up to a tolerance off their slots, so the disk that travels is larger than
+    the covering radius (1.9 m): a door wider than 2 x (1.9 + 0.5) m but narrower than 2 x (1.95 + 0.5) m
+    lets no team through, and the task that needs it is refuted instead of left unknown."""
+    sc = scenario_from_dict(two_rooms("F o1_p2", passage=passage))
+    ts = TransitionSystem(sc)
+    assert ts.connected(ts.covering_radius(0, (0, 1)), 0, 1)
+    assert ts.connected(ts.travel_radius(0, (0, 1)), 0, 1) is passes
+    if passes:
+        plan = plan_scenario(sc, iterations=200)
+        assert plan.suffix[0][0][2] == 1  # o1 (after r1, r2 in the state) in p2
+        return
+    for planner in ("exact", "stylus"):
+        with pytest.raises(UserError) as e:
+            plan_scenario(sc, planner=planner, iterations=200)
+        assert str(e.value).startswith("task is unsatisfiable: ")
+        assert "object o1 can never be carried to p2 from p1" in str(e.value)
 
 
 def _strong_team_door(width: float) -> dict:

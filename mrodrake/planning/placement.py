@@ -1072,9 +1072,6 @@ class _Placer:
         return Placement(tuple(map(tuple, initial.tolist())), tuple(out))
 
 
-#: Slack (m) on a team's covering radius in the reachability check (docking tolerance, rounding).
-TEAM_RADIUS_SLACK = 0.05
-
 
 def unreachable_arrival(ts: TransitionSystem, placement: Placement) -> PlacementError | None:
     """The first navigation or transport of the placed run whose goal the free space of the moving entity
@@ -1092,7 +1089,7 @@ def unreachable_arrival(ts: TransitionSystem, placement: Placement) -> Placement
                 if isinstance(a, Navigate):
                     movers, R = {a.robot}, float(radii[a.robot])
                 else:
-                    movers, R = {N + a.obj, *a.team}, ts.covering_radius(a.obj, a.team) + TEAM_RADIUS_SLACK
+                    movers, R = {N + a.obj, *a.team}, ts.travel_radius(a.obj, a.team)
                 space = ts.region_graph.travel_space(R, a.src, a.dst)
                 start, goal = X[op.entity], np.asarray(op.goal, dtype=float)
                 disks = [Point(*X[e]).buffer(radii[e] + R) for e in range(len(X)) if e not in movers]
