@@ -292,9 +292,20 @@ class TransitionSystem:
         self._cover[key] = r
         return r
 
+    def carry_connections(self, j: int) -> np.ndarray | None:
+        """``C[k, k']``: can object j ever be carried from region k to k' (None: no team is strong enough)?  The
+        regions must be connected for the travel radius of its smallest strong-enough team
+        (:meth:`smallest_team_radius` + the docking slack; a larger radius only removes connections), and
+        that team must fit in both, since a transport starts and ends with the team standing in them."""
+        r = self.smallest_team_radius(j)
+        if r is None:
+            return None
+        fits = np.array([self.region_fits(k, [r]) for k in range(self.K)], dtype=bool)
+        return self.connections(r + TEAM_TRAVEL_SLACK) & fits[:, None] & fits[None, :]
+
     def unreachable(self) -> list[str]:
         """One line per entity that can never reach some region from where it starts: robots by their
-        radius, objects by :meth:`smallest_team_radius`."""
+        radius, objects by :meth:`carry_connections` (regions where no strong-enough team fits first)."""
         out = []
         names = self.region_names
         for i in range(self.N):
@@ -313,7 +324,19 @@ class TransitionSystem:
                            f"in any region (smallest covering radius {r:.2f} m, largest "
                            f"region radius {max(self.region_radius):.2f} m)")
                 continue
-            miss = [names[m] for m in range(self.K) if m not in self.reach(r + TEAM_TRAVEL_SLACK, k)]
+            unfit = [m for m in range(self.K) if not self.region_fits(m, [r])]
+            size = f"smallest covering radius {r:.2f} m"
+            if k in unfit:
+                out.append(f"object {self.object_names[j]} can never be carried: no team strong enough fits in "
+                           f"its region {names[k]} ({size}, region radius {self.region_radius[k]:.2f} m)")
+                continue
+            if unfit:
+                out.append(f"object {self.object_names[j]} can never be carried to "
+                           f"{', '.join(names[m] for m in unfit)}: no team strong enough fits there ({size}, "
+                           f"region radi{'us' if len(unfit) == 1 else 'i'} "
+                           f"{', '.join(f'{self.region_radius[m]:.2f}' for m in unfit)} m)")
+            near = reachable(self.carry_connections(j), k)
+            miss = [names[m] for m in range(self.K) if m not in near and m not in unfit]
             if miss:
                 out.append(f"object {self.object_names[j]} can never be carried to {', '.join(miss)} from "
                            f"{names[k]}: {_no_passage(self.margin, True)} for its smallest team (covering radius "
@@ -336,7 +359,7 @@ class TransitionSystem:
         for j in range(M):
             best = self.smallest_team(j)
             k = self.initial[N + j]
-            obj_dom.append(self.reach(best[1] + TEAM_TRAVEL_SLACK, k) if best is not None else [k])
+            obj_dom.append(sorted(reachable(self.carry_connections(j), k)) if best is not None else [k])
         obj_weight = math.prod(len(d) for d in obj_dom)
         states = transitions = 0.0
         for _ in range(samples):

@@ -137,3 +137,28 @@ def test_a_team_larger_than_every_region_is_named_as_the_cause(tmp_path, capsys)
     assert msg.startswith("task is unsatisfiable: object o1 must leave region p1") and "\n" not in msg
     assert msg.endswith("no team strong enough fits in any region (smallest covering radius 1.90 m, largest region "
                         "radius 1.85 m)")
+
+
+@pytest.mark.parametrize("where", ["start", "goal"])
+def test_a_region_too_small_for_every_strong_team_confines_the_object(where):
+    """A region of radius 2.0 m holds the object and robots but not a team (covering radius 1.9 m, spacing
+    0.1 m): the object can neither leave it nor be carried into it.  Six robots and three other objects make
+    the TS too large to decide explicitly, so the relaxation must see it."""
+    data = two_rooms("F o1_p2 & G F r1_p1", passage=8.0)
+    data["regions"][1]["center"] = [36.0, 6.0]
+    data["regions"][0 if where == "start" else 1]["radius"] = 2.0
+    data["regions"].append({"name": "p3", "center": [36.0, 16.0], "radius": 3.5})
+    data["robots"] += [{"name": f"r{i}", "mass": 1.0, "radius": 0.75, "power": 1, "initial_region": "p3"}
+                       for i in range(3, 7)]
+    data["objects"] += [{"name": f"o{j}", "mass": 0.3, "radius": 0.3, "required_power": 1, "initial_region": "p3"}
+                        for j in range(2, 5)]
+    sc = scenario_from_dict(data)
+    ts = TransitionSystem(sc)
+    assert ts.smallest_team_radius(0) == pytest.approx(1.9) and ts.connected(1.95, 0, 1)
+    blocked = ("object o1 can never be carried: no team strong enough fits in its region p1" if where == "start"
+               else "object o1 can never be carried to p2: no team strong enough fits there")
+    assert any(line.startswith(blocked) for line in ts.unreachable())
+    with pytest.raises(UserError) as e:
+        plan_scenario(sc, iterations=50)
+    msg = str(e.value)
+    assert msg.startswith("task is unsatisfiable: no accepting cycle of the NBA") and blocked in msg

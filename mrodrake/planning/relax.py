@@ -8,10 +8,11 @@ them or constrains the others:
 
 * an entity is in a region or between two regions (leaving k for k', then entering k'); it travels only
   between regions connected for its radius (robots) or for the smallest covering radius a team strong
-  enough to carry it can have, plus the docking slack of :meth:`~mrodrake.ts.TransitionSystem.travel_radius`
-  (objects: :meth:`~mrodrake.ts.TransitionSystem.smallest_team_radius`; a larger radius only removes
-  connections); objects no team can move
-  (:func:`~mrodrake.planning.exact.immovable_objects`) and robots without a passage never move;
+  enough to carry it can have, plus the docking slack of :meth:`~mrodrake.ts.TransitionSystem.travel_radius`,
+  and only between regions where that team fits (objects:
+  :meth:`~mrodrake.ts.TransitionSystem.carry_connections`; a larger radius only removes connections);
+  objects no team can move (:func:`~mrodrake.planning.exact.immovable_objects`) and robots without a passage
+  never move;
 * packing (P_s), step capacity, Λ and grasping are dropped: entities of E move independently, one visible
   crossing per letter, any number of invisible ones (ε, closed over);
 * entities outside E are unconstrained: an NBA cube is usable if E's part holds on the letter and the rest
@@ -35,7 +36,6 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.csgraph import breadth_first_order, connected_components
 
-from mrodrake.geometry import TEAM_TRAVEL_SLACK
 from mrodrake.logic.nba import NBA
 from mrodrake.planning.exact import immovable_objects
 from mrodrake.ts import TransitionSystem, reachable
@@ -85,8 +85,8 @@ def entity_connections(ts: TransitionSystem, immovable) -> list[np.ndarray]:
     for i in range(ts.N):
         out.append(ts.connections(ts.robot_radius[i]).copy())
     for j in range(ts.M):
-        r = None if j in immovable else ts.smallest_team_radius(j)
-        out.append(np.zeros((K, K), dtype=bool) if r is None else ts.connections(r + TEAM_TRAVEL_SLACK).copy())
+        C = None if j in immovable else ts.carry_connections(j)
+        out.append(np.zeros((K, K), dtype=bool) if C is None else C.copy())
     for C in out:
         np.fill_diagonal(C, False)
     return out
