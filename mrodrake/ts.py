@@ -151,7 +151,9 @@ class TransitionSystem:
         self.propositions = scenario.propositions()
         self._prop_index = {p: b for b, p in enumerate(self.propositions)}
         self._region_index = {g: k for k, g in enumerate(self.region_names)}
-        self._cover: dict[tuple[int, tuple[int, ...]], float] = {}
+        self._cover: dict[tuple, float | None] = {}
+        self._carry: dict[int, np.ndarray | None] = {}
+        self._robot_regions: list[set[int]] | None = None
         self._fits: dict[tuple[int, tuple[float, ...]], bool] = {}
         self._valid: dict[State, bool] = {}
         self._label: dict[State, int] = {}
@@ -270,21 +272,24 @@ class TransitionSystem:
         best = min(teams, key=lambda t: (self.covering_radius(j, t), len(t)))
         return best, self.covering_radius(j, best)
 
-    def smallest_team_radius(self, j: int) -> float | None:
+    def smallest_team_radius(self, j: int, among: Sequence[int] | None = None) -> float | None:
         """A lower bound on the covering radius of every team powerful enough to carry object j (None when
-        no team is): exact over all teams up to 12 robots; beyond, the smallest c such that the robots whose
-        one-robot covering radius is at most c are together strong enough (a team's covering radius is at
-        least each of its members' one-robot radii, :func:`~mrodrake.geometry.grasp_layout`)."""
-        key = ("team", j)
+        no team is), its members drawn from ``among`` (default: every robot): exact over all teams up to 12
+        robots; beyond, the smallest c such that the robots whose one-robot covering radius is at most c are
+        together strong enough (a team's covering radius is at least each of its members' one-robot radii,
+        :func:`~mrodrake.geometry.grasp_layout`)."""
+        robots = tuple(range(self.N)) if among is None else tuple(sorted(among))
+        key = ("team", j, robots)
         if key in self._cover:
             return self._cover[key]
         r = None
         if self.N <= 12:
-            best = self.smallest_team(j)
-            r = None if best is None else best[1]
+            radii = [self.covering_radius(j, t) for n in range(1, len(robots) + 1)
+                     for t in itertools.combinations(robots, n) if self.team_power_ok(t, j)]
+            r = min(radii, default=None)
         else:
             power = 0.0
-            for c, i in sorted((self.covering_radius(j, (i,)), i) for i in range(self.N)):
+            for c, i in sorted((self.covering_radius(j, (i,)), i) for i in robots):
                 power += self.power[i]
                 if power >= self.required_power[j]:
                     r = c
@@ -292,16 +297,32 @@ class TransitionSystem:
         self._cover[key] = r
         return r
 
+    def robot_regions(self) -> list[set[int]]:
+        """The regions each robot can ever be in (its own travels; a team's larger radius only removes
+        connections, so carrying an object takes it nowhere else)."""
+        if self._robot_regions is None:
+            self._robot_regions = [set(self.reach(self.robot_radius[i], self.initial[i])) for i in range(self.N)]
+        return self._robot_regions
+
     def carry_connections(self, j: int) -> np.ndarray | None:
-        """``C[k, k']``: can object j ever be carried from region k to k' (None: no team is strong enough)?  The
-        regions must be connected for the travel radius of its smallest strong-enough team
-        (:meth:`smallest_team_radius` + the docking slack; a larger radius only removes connections), and
-        that team must fit in both, since a transport starts and ends with the team standing in them."""
-        r = self.smallest_team_radius(j)
-        if r is None:
-            return None
-        fits = np.array([self.region_fits(k, [r]) for k in range(self.K)], dtype=bool)
-        return self.connections(r + TEAM_TRAVEL_SLACK) & fits[:, None] & fits[None, :]
+        """``C[k, k']``: can object j ever be carried from region k to k' (None: no team is strong enough)?  A
+        team that carries it stands in k and then in k', so its members are robots that can reach both, and
+        it fits in both; with r the smallest covering radius of a strong-enough team of such robots
+        (:meth:`smallest_team_radius`), the regions must hold a disk of radius r and be connected for r + the
+        docking slack (a larger radius only removes connections)."""
+        if j in self._carry:
+            return self._carry[j]
+        C = None
+        if self.smallest_team_radius(j) is not None:
+            where = self.robot_regions()
+            C = np.zeros((self.K, self.K), dtype=bool)
+            for k in range(self.K):
+                for k2 in range(self.K):
+                    r = self.smallest_team_radius(j, [i for i in range(self.N) if k in where[i] and k2 in where[i]])
+                    if r is not None and self.region_fits(k, [r]) and self.region_fits(k2, [r]):
+                        C[k, k2] = self.connected(r + TEAM_TRAVEL_SLACK, k, k2)
+        self._carry[j] = C
+        return C
 
     def unreachable(self) -> list[str]:
         """One line per entity that can never reach some region from where it starts: robots by their
@@ -335,12 +356,26 @@ class TransitionSystem:
                            f"{', '.join(names[m] for m in unfit)}: no team strong enough fits there ({size}, "
                            f"region radi{'us' if len(unfit) == 1 else 'i'} "
                            f"{', '.join(f'{self.region_radius[m]:.2f}' for m in unfit)} m)")
-            near = reachable(self.carry_connections(j), k)
-            miss = [names[m] for m in range(self.K) if m not in near and m not in unfit]
+            crew = [i for i in range(self.N) if k in self.robot_regions()[i]]
+            if self.smallest_team_radius(j, crew) is None:
+                who = "+".join(self.robot_names[i] for i in crew) or "none"
+                out.append(f"object {self.object_names[j]} can never be carried: the robots that can reach its "
+                           f"region {names[k]} ({who}) are not strong enough together (power "
+                           f"{sum(self.power[i] for i in crew):g}, needs {self.required_power[j]:g})")
+                continue
+            fits = np.array([m not in unfit for m in range(self.K)])
+            passable = reachable(self.connections(r + TEAM_TRAVEL_SLACK) & fits[:, None] & fits[None, :], k)
+            miss = [names[m] for m in range(self.K) if m not in passable and m not in unfit]
             if miss:
                 out.append(f"object {self.object_names[j]} can never be carried to {', '.join(miss)} from "
                            f"{names[k]}: {_no_passage(self.margin, True)} for its smallest team (covering radius "
                            f"{r:.2f} m)")
+            near = reachable(self.carry_connections(j), k)
+            weak = [names[m] for m in sorted(passable - near)]
+            if weak:
+                out.append(f"object {self.object_names[j]} can never be carried to {', '.join(weak)} from "
+                           f"{names[k]}: no team strong enough of robots that can reach the regions on the way "
+                           "gets it there")
         return out
 
     def estimate_size(self, samples: int = 300, per_state: int = 24, seed: int = 0) -> SizeEstimate:

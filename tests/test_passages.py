@@ -162,3 +162,40 @@ def test_a_region_too_small_for_every_strong_team_confines_the_object(where):
         plan_scenario(sc, iterations=50)
     msg = str(e.value)
     assert msg.startswith("task is unsatisfiable: no accepting cycle of the NBA") and blocked in msg
+
+
+def _big_robot_door(big_region: str) -> dict:
+    """Two rooms joined by a 2 m door that the small robots (radius 0.25 m) pass and the big one (0.6 m) does
+    not; o1, in the east room, needs the big robot's power (the five small ones have 2.5 of the 4 it needs)."""
+    return {
+        "name": "big_robot_door",
+        "workspace": {"boundary": [[0, 0], [10, 0], [10, 4], [10.2, 4], [10.2, 0], [20, 0], [20, 10], [10.2, 10],
+                                   [10.2, 6], [10, 6], [10, 10], [0, 10]]},
+        "regions": [{"name": "p1", "center": [3, 3], "radius": 1.8}, {"name": "p2", "center": [3, 7.5], "radius": 1.8},
+                    {"name": "p3", "center": [16, 2.5], "radius": 1.8},
+                    {"name": "p4", "center": [16, 7.5], "radius": 1.8}],
+        "robots": [{"name": "big", "mass": 1.0, "radius": 0.6, "power": 3, "initial_region": big_region}]
+        + [{"name": f"s{i}", "mass": 1.0, "radius": 0.25, "power": 0.5, "initial_region": "p2" if i % 2 else "p3"}
+           for i in range(1, 6)],
+        "objects": [{"name": "o1", "mass": 0.25, "radius": 0.2, "required_power": 4, "initial_region": "p3"},
+                    {"name": "q1", "mass": 0.25, "radius": 0.15, "required_power": 1, "initial_region": "p1"},
+                    {"name": "q2", "mass": 0.25, "radius": 0.15, "required_power": 1, "initial_region": "p4"}],
+        "task": {"formula": "F o1_p4 & G F s1_p1"},
+    }
+
+
+def test_an_object_only_robots_that_cannot_reach_it_are_strong_enough_to_move_stays():
+    """The relaxation carries an object only with teams of robots that can reach both regions: with the big
+    robot locked in the west room, o1 never moves (the TS is too large to decide explicitly)."""
+    sc = scenario_from_dict(_big_robot_door("p1"))
+    ts = TransitionSystem(sc)
+    assert not ts.carry_connections(0)[2].any()  # nothing carries o1 out of p3
+    blocked = ("object o1 can never be carried: the robots that can reach its region p3 (s1+s2+s3+s4+s5) are not "
+               "strong enough together (power 2.5, needs 4)")
+    assert blocked in ts.unreachable()
+    with pytest.raises(UserError) as e:
+        plan_scenario(sc, iterations=50)
+    assert str(e.value).startswith("task is unsatisfiable: no accepting cycle of the NBA") and blocked in str(e.value)
+    east = TransitionSystem(scenario_from_dict(_big_robot_door("p4")))
+    assert east.carry_connections(0)[2, 3] and not east.carry_connections(0)[2, 0]
+    assert not any(line.startswith("object o1") and "not strong enough" in line for line in east.unreachable())

@@ -9,7 +9,7 @@ them or constrains the others:
 * an entity is in a region or between two regions (leaving k for k', then entering k'); it travels only
   between regions connected for its radius (robots) or for the smallest covering radius a team strong
   enough to carry it can have, plus the docking slack of :meth:`~mrodrake.ts.TransitionSystem.travel_radius`,
-  and only between regions where that team fits (objects:
+  and only between regions where that team, of robots that can reach both, fits (objects:
   :meth:`~mrodrake.ts.TransitionSystem.carry_connections`; a larger radius only removes connections);
   objects no team can move (:func:`~mrodrake.planning.exact.immovable_objects`) and robots without a passage
   never move;
