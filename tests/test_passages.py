@@ -5,6 +5,8 @@ from __future__ import annotations
 
 import pytest
 import yaml
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 
 from mrodrake import cli
 from mrodrake.errors import UserError
@@ -199,3 +201,37 @@ def test_an_object_only_robots_that_cannot_reach_it_are_strong_enough_to_move_st
     east = TransitionSystem(scenario_from_dict(_big_robot_door("p4")))
     assert east.carry_connections(0)[2, 3] and not east.carry_connections(0)[2, 0]
     assert not any(line.startswith("object o1") and "not strong enough" in line for line in east.unreachable())
+
+
+@settings(max_examples=30, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(door=st.sampled_from([1.6, 2.2, 2.8, 3.6]), radii=st.lists(st.sampled_from([0.25, 0.5, 0.6]), min_size=3,
+       max_size=3), powers=st.lists(st.sampled_from([0.5, 1.0, 2.0]), min_size=3, max_size=3),
+       need=st.sampled_from([1.0, 1.5, 2.5, 3.5]), starts=st.lists(st.integers(0, 3), min_size=4, max_size=4),
+       small=st.sampled_from([1.2, 1.5, 1.8]))
+def test_carry_connections_admit_every_transport_of_the_ts(door, radii, powers, need, starts, small):
+    """Every transport of the explicit TS goes between regions that :meth:`carry_connections` connects (the
+    relaxations' soundness: they never forbid what the TS can do)."""
+    data = _big_robot_door("p1")
+    lo, hi = 5.0 - door / 2, 5.0 + door / 2
+    data["workspace"]["boundary"] = [[0, 0], [10, 0], [10, lo], [10.2, lo], [10.2, 0], [20, 0], [20, 10],
+                                     [10.2, 10], [10.2, hi], [10, hi], [10, 10], [0, 10]]
+    data["regions"][2]["radius"] = small
+    names = [g["name"] for g in data["regions"]]
+    data["robots"] = [{"name": f"r{i}", "mass": 1.0, "radius": r, "power": p, "initial_region": names[k]}
+                      for i, (r, p, k) in enumerate(zip(radii, powers, starts))]
+    data["objects"] = [{"name": "o1", "mass": 0.25, "radius": 0.2, "required_power": need,
+                        "initial_region": names[starts[3]]}]
+    data["task"] = {"formula": "F o1_p4"}
+    try:
+        sc = scenario_from_dict(data)
+    except UserError:
+        return  # the drawn entities do not fit where they start
+    ts = TransitionSystem(sc)
+    C = ts.carry_connections(0)
+    ets = ts.build(max_states=20_000)
+    for u in range(ets.num_states):
+        s = ets.state(u)
+        for v in ets.successors(u):
+            for a in ts.actions(s, ets.state(int(v))):
+                if isinstance(a, Transport):
+                    assert C is not None and C[a.src, a.dst], (a, C)
