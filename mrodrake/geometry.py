@@ -103,6 +103,10 @@ def grasp_layout(object_radius: float, robot_radii: Sequence[float], gap: float)
 #: Clearance (m) a moving entity keeps from walls, workspace obstacles and other regions beyond its radius
 #: (the controllers' numerical margin, see :mod:`mrodrake.control.freespace`).
 CONTROL_MARGIN = 0.5
+#: Slack (m) on a robots-object team's covering radius wherever its travel between regions is checked: its
+#: members dock within the sequencer's docking tolerance (3 cm) of their slots, so the disk that travels is up
+#: to that much larger than the planned covering radius; the rest covers rounding.
+TEAM_TRAVEL_SLACK = 0.05
 #: Erosion (m) of a free space beyond radius and margin: opens pinch points where enlarged obstacles touch.
 FREE_SPACE_SAFETY = 1e-3
 _CHORD = 1.0 / math.cos(math.pi / (4 * DISK_QUAD_SEGS))

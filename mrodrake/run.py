@@ -76,6 +76,8 @@ def run(args: argparse.Namespace) -> int:
 
     if args.suffix_cycles < 0:
         raise UserError(f"--suffix-cycles: must be >= 0, got {args.suffix_cycles}")
+    if args.seed < 0:
+        raise UserError(f"--seed: must be >= 0, got {args.seed}")
     scenario = load_scenario(args.scenario)
     plan = load_plan(scenario, args.plan) if args.plan else None
     out = ensure_output_dir(Path(args.out) if args.out else Path("out") / scenario.name)

@@ -39,15 +39,17 @@ import numpy as np
 from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import breadth_first_order
 
-from mrodrake.geometry import RegionGraph, grasp_layout, polygon
+from mrodrake.geometry import TEAM_TRAVEL_SLACK, RegionGraph, grasp_layout, polygon
 from mrodrake.packing import entities_fit
 from mrodrake.scenario import Scenario
 
 
-def _no_passage(margin: float) -> str:
+def _no_passage(margin: float, team: bool = False) -> str:
     """Why a travel is blocked: free space is the workspace minus walls, obstacles and other regions grown by
-    the entity's radius plus the controllers' margin (``control.margin``)."""
-    return ("no passage wide enough (walls, obstacles and other regions grown by the radius + control.margin "
+    the entity's radius (a team's: its covering radius plus the docking slack) plus the controllers' margin
+    (``control.margin``)."""
+    radius = f"the covering radius + slack {TEAM_TRAVEL_SLACK:g} m" if team else "the radius"
+    return (f"no passage wide enough (walls, obstacles and other regions grown by {radius} + control.margin "
             f"{margin:g} m)")
 
 State = tuple
@@ -149,7 +151,9 @@ class TransitionSystem:
         self.propositions = scenario.propositions()
         self._prop_index = {p: b for b, p in enumerate(self.propositions)}
         self._region_index = {g: k for k, g in enumerate(self.region_names)}
-        self._cover: dict[tuple[int, tuple[int, ...]], float] = {}
+        self._cover: dict[tuple, float | None] = {}
+        self._carry: dict[int, np.ndarray | None] = {}
+        self._robot_regions: list[set[int]] | None = None
         self._fits: dict[tuple[int, tuple[float, ...]], bool] = {}
         self._valid: dict[State, bool] = {}
         self._label: dict[State, int] = {}
@@ -199,6 +203,12 @@ class TransitionSystem:
             self._cover[key] = r
         return r
 
+    def travel_radius(self, j: int, team: tuple[int, ...]) -> float:
+        """Radius of object j carried by ``team`` wherever its travel between regions is checked: the covering
+        radius plus :data:`~mrodrake.geometry.TEAM_TRAVEL_SLACK` (the members dock within a tolerance of their
+        slots)."""
+        return self.covering_radius(j, team) + TEAM_TRAVEL_SLACK
+
     @property
     def region_graph(self) -> RegionGraph:
         if self._graph is None:
@@ -232,7 +242,7 @@ class TransitionSystem:
             if isinstance(a, Navigate):
                 r = self.robot_radius[a.robot]
             elif isinstance(a, Transport):
-                r = self.covering_radius(a.obj, a.team)
+                r = self.travel_radius(a.obj, a.team)
             else:
                 continue
             if not self.connected(r, a.src, a.dst):
@@ -241,8 +251,10 @@ class TransitionSystem:
                 else:
                     who = (f"object {self.object_names[a.obj]} with team "
                            f"{'+'.join(self.robot_names[i] for i in a.team)}")
-                return (f"{who} (radius {r:.2f} m) cannot travel from {self.region_names[a.src]} to "
-                        f"{self.region_names[a.dst]}: {_no_passage(self.margin)}")
+                size = f"radius {r:.2f} m" if isinstance(a, Navigate) else \
+                    f"covering radius {self.covering_radius(a.obj, a.team):.2f} m"
+                return (f"{who} ({size}) cannot travel from {self.region_names[a.src]} to "
+                        f"{self.region_names[a.dst]}: {_no_passage(self.margin, isinstance(a, Transport))}")
         return None
 
     def reach(self, radius: float, k: int) -> list[int]:
@@ -260,21 +272,24 @@ class TransitionSystem:
         best = min(teams, key=lambda t: (self.covering_radius(j, t), len(t)))
         return best, self.covering_radius(j, best)
 
-    def smallest_team_radius(self, j: int) -> float | None:
+    def smallest_team_radius(self, j: int, among: Sequence[int] | None = None) -> float | None:
         """A lower bound on the covering radius of every team powerful enough to carry object j (None when
-        no team is): exact over all teams up to 12 robots; beyond, the smallest c such that the robots whose
-        one-robot covering radius is at most c are together strong enough (a team's covering radius is at
-        least each of its members' one-robot radii, :func:`~mrodrake.geometry.grasp_layout`)."""
-        key = ("team", j)
+        no team is), its members drawn from ``among`` (default: every robot): exact over all teams up to 12
+        robots; beyond, the smallest c such that the robots whose one-robot covering radius is at most c are
+        together strong enough (a team's covering radius is at least each of its members' one-robot radii,
+        :func:`~mrodrake.geometry.grasp_layout`)."""
+        robots = tuple(range(self.N)) if among is None else tuple(sorted(among))
+        key = ("team", j, robots)
         if key in self._cover:
             return self._cover[key]
         r = None
         if self.N <= 12:
-            best = self.smallest_team(j)
-            r = None if best is None else best[1]
+            radii = [self.covering_radius(j, t) for n in range(1, len(robots) + 1)
+                     for t in itertools.combinations(robots, n) if self.team_power_ok(t, j)]
+            r = min(radii, default=None)
         else:
             power = 0.0
-            for c, i in sorted((self.covering_radius(j, (i,)), i) for i in range(self.N)):
+            for c, i in sorted((self.covering_radius(j, (i,)), i) for i in robots):
                 power += self.power[i]
                 if power >= self.required_power[j]:
                     r = c
@@ -282,9 +297,36 @@ class TransitionSystem:
         self._cover[key] = r
         return r
 
+    def robot_regions(self) -> list[set[int]]:
+        """The regions each robot can ever be in (its own travels; a team's larger radius only removes
+        connections, so carrying an object takes it nowhere else)."""
+        if self._robot_regions is None:
+            self._robot_regions = [set(self.reach(self.robot_radius[i], self.initial[i])) for i in range(self.N)]
+        return self._robot_regions
+
+    def carry_connections(self, j: int) -> np.ndarray | None:
+        """``C[k, k']``: can object j ever be carried from region k to k' (None: no team is strong enough)?  A
+        team that carries it stands in k and then in k', so its members are robots that can reach both, and
+        it fits in both; with r the smallest covering radius of a strong-enough team of such robots
+        (:meth:`smallest_team_radius`), the regions must hold a disk of radius r and be connected for r + the
+        docking slack (a larger radius only removes connections)."""
+        if j in self._carry:
+            return self._carry[j]
+        C = None
+        if self.smallest_team_radius(j) is not None:
+            where = self.robot_regions()
+            C = np.zeros((self.K, self.K), dtype=bool)
+            for k in range(self.K):
+                for k2 in range(self.K):
+                    r = self.smallest_team_radius(j, [i for i in range(self.N) if k in where[i] and k2 in where[i]])
+                    if r is not None and self.region_fits(k, [r]) and self.region_fits(k2, [r]):
+                        C[k, k2] = self.connected(r + TEAM_TRAVEL_SLACK, k, k2)
+        self._carry[j] = C
+        return C
+
     def unreachable(self) -> list[str]:
         """One line per entity that can never reach some region from where it starts: robots by their
-        radius, objects by :meth:`smallest_team_radius`."""
+        radius, objects by :meth:`carry_connections` (regions where no strong-enough team fits first)."""
         out = []
         names = self.region_names
         for i in range(self.N):
@@ -303,10 +345,37 @@ class TransitionSystem:
                            f"in any region (smallest covering radius {r:.2f} m, largest "
                            f"region radius {max(self.region_radius):.2f} m)")
                 continue
-            miss = [names[m] for m in range(self.K) if m not in self.reach(r, k)]
+            unfit = [m for m in range(self.K) if not self.region_fits(m, [r])]
+            size = f"smallest covering radius {r:.2f} m"
+            if k in unfit:
+                out.append(f"object {self.object_names[j]} can never be carried: no team strong enough fits in "
+                           f"its region {names[k]} ({size}, region radius {self.region_radius[k]:.2f} m)")
+                continue
+            if unfit:
+                out.append(f"object {self.object_names[j]} can never be carried to "
+                           f"{', '.join(names[m] for m in unfit)}: no team strong enough fits there ({size}, "
+                           f"region radi{'us' if len(unfit) == 1 else 'i'} "
+                           f"{', '.join(f'{self.region_radius[m]:.2f}' for m in unfit)} m)")
+            crew = [i for i in range(self.N) if k in self.robot_regions()[i]]
+            if self.smallest_team_radius(j, crew) is None:
+                who = "+".join(self.robot_names[i] for i in crew) or "none"
+                out.append(f"object {self.object_names[j]} can never be carried: the robots that can reach its "
+                           f"region {names[k]} ({who}) are not strong enough together (power "
+                           f"{sum(self.power[i] for i in crew):g}, needs {self.required_power[j]:g})")
+                continue
+            fits = np.array([m not in unfit for m in range(self.K)])
+            passable = reachable(self.connections(r + TEAM_TRAVEL_SLACK) & fits[:, None] & fits[None, :], k)
+            miss = [names[m] for m in range(self.K) if m not in passable and m not in unfit]
             if miss:
                 out.append(f"object {self.object_names[j]} can never be carried to {', '.join(miss)} from "
-                           f"{names[k]}: {_no_passage(self.margin)} for its smallest team (covering radius {r:.2f} m)")
+                           f"{names[k]}: {_no_passage(self.margin, True)} for its smallest team (covering radius "
+                           f"{r:.2f} m)")
+            near = reachable(self.carry_connections(j), k)
+            weak = [names[m] for m in sorted(passable - near)]
+            if weak:
+                out.append(f"object {self.object_names[j]} can never be carried to {', '.join(weak)} from "
+                           f"{names[k]}: no team strong enough of robots that can reach the regions on the way "
+                           "gets it there")
         return out
 
     def estimate_size(self, samples: int = 300, per_state: int = 24, seed: int = 0) -> SizeEstimate:
@@ -325,7 +394,7 @@ class TransitionSystem:
         for j in range(M):
             best = self.smallest_team(j)
             k = self.initial[N + j]
-            obj_dom.append(self.reach(best[1], k) if best is not None else [k])
+            obj_dom.append(sorted(reachable(self.carry_connections(j), k)) if best is not None else [k])
         obj_weight = math.prod(len(d) for d in obj_dom)
         states = transitions = 0.0
         for _ in range(samples):
@@ -723,7 +792,7 @@ class TransitionSystem:
         obj_opts = []
         for j in range(M):
             if team_power[j] > 0 and team_power[j] >= self.required_power[j]:
-                C = self.connections(self.covering_radius(j, teams[j]))
+                C = self.connections(self.travel_radius(j, teams[j]))
                 obj_opts.append([O[j]] + [k for k in range(K) if k != O[j] and C[O[j], k]])
             else:
                 obj_opts.append([O[j]])
@@ -1050,7 +1119,7 @@ class TransitionSystem:
                 dests = carry.get((j, key))
                 if dests is None:
                     members, o = divmod(key, K)
-                    C = self.connections(self.covering_radius(j, tuple(i for i in range(N) if members >> i & 1)))
+                    C = self.connections(self.travel_radius(j, tuple(i for i in range(N) if members >> i & 1)))
                     dests = carry[(j, key)] = [o] + [k for k in range(K) if k != o and C[o, k]]
                 sel = h[inv == u]
                 opts[sel, j, :len(dests)] = dests

@@ -1025,16 +1025,20 @@ class _Placer:
             # grasped first only (each later grasp checks its disk when it forms)
             later = sorted((n for n, e in enumerate(ents) if e >= N and radii[n] > self.radii[e]),
                            key=lambda n: (-self.first_grasp(ents[n] - N, 0), ents[n]))
+            dropped: list[int] = []
             for drop in range(1, len(later) + 1):
                 if sol is not None:
                     break
                 fewer = list(radii)
-                for n in later[:drop]:
+                dropped = later[:drop]
+                for n in dropped:
                     fewer[n] = float(self.radii[ents[n]])
                 for attempt in range(SEEDS):
                     sol = self.place_in(k, fewer, [], [], attempt)
                     if sol is not None:
                         break
+            if sol is not None and dropped:
+                sol = self._formable_layout(k, ents, radii, dropped, sol)
             if sol is None:
                 raise PlacementError(f"initial state: region '{self.ts.region_names[k]}': the entities "
                                      f"{', '.join((self.ts.robot_names + self.ts.object_names)[e] for e in everyone)} "
@@ -1043,6 +1047,47 @@ class _Placer:
             for j in sorted(set(seated.values())):
                 self.seat(pos, k, j, seated)
         return pos
+
+    def formable(self, k: int, j: int, xo) -> bool:
+        """Whether the next team of object j can form around it at ``xo`` in region k: some rotation of its
+        layout (the angles a grasp tries) puts every slot inside the region with half the spacing to the rim."""
+        team = self.next_team(j, 0)
+        if not team:
+            return True
+        reach = np.array([self.R[k] - float(self.radii[i]) - 0.5 * self.spacing for i in team])
+        for rot in np.linspace(0.0, 2.0 * math.pi, _ANGLES, endpoint=False):
+            slots = layout_slots(self.ts, j, team, xo, rot)
+            if np.all(np.linalg.norm(slots - self.centers[k], axis=1) <= reach):
+                return True
+        return False
+
+    def _formable_layout(self, k: int, ents: list[int], radii: list[float], dropped: list[int],
+                         sol: np.ndarray) -> np.ndarray:
+        """The initial layout ``sol`` of region k, or, when an object whose team disk was dropped (its team
+        forms after others) stands where that team cannot form, one that first puts every object with its
+        kept disk, then each dropped object where its team can form clear of those disks, then the rest
+        (None when that fails too; ``sol`` is returned then, the grasp reports the failure)."""
+        N = self.N
+        if all(self.formable(k, ents[n] - N, sol[n]) for n in dropped):
+            return sol
+        kept = sorted((n for n, e in enumerate(ents) if e >= N and n not in dropped), key=lambda n: -radii[n])
+        out, cs, rs = np.zeros((len(ents), 2)), [], []
+        for n in kept + dropped:  # each as far out as it goes, the dropped ones where their teams can form
+            j = ents[n] - N
+            r = radii[n] if n in kept else float(self.radii[ents[n]])
+            p = self.spot(k, r, cs, rs, accept=None if n in kept else lambda q, j=j: self.formable(k, j, q))
+            if p is None:
+                return sol
+            out[n] = p
+            cs.append(p)
+            rs.append(r)
+        rest = [n for n in range(len(ents)) if n not in kept and n not in dropped]
+        for attempt in range(SEEDS if rest else 0):
+            part = self.place_in(k, [radii[n] for n in rest], cs, rs, attempt)
+            if part is not None:
+                out[rest] = part
+                return out
+        return out if not rest else sol
 
     def run(self, initial: np.ndarray) -> Placement:
         w = _World(self.ts, self.steps[0].src if self.steps else self.ts.initial, initial)
@@ -1072,8 +1117,6 @@ class _Placer:
         return Placement(tuple(map(tuple, initial.tolist())), tuple(out))
 
 
-#: Slack (m) on a team's covering radius in the reachability check (docking tolerance, rounding).
-TEAM_RADIUS_SLACK = 0.05
 #: Half the narrowest passage (m) a moving entity's centre is given between the entities in its way: the
 #: executor finds its way on grids of 0.25 m (``control/windows.py``), which an 8-connected grid resolves in
 #: every direction only in passages wider than 0.25 √2 m; a thinner gap (two robots parked across a corridor
@@ -1111,7 +1154,7 @@ def unreachable_arrival(ts: TransitionSystem, placement: Placement) -> Placement
                 if isinstance(a, Navigate):
                     movers, R = {a.robot}, float(radii[a.robot])
                 else:
-                    movers, R = {N + a.obj, *a.team}, ts.covering_radius(a.obj, a.team) + TEAM_RADIUS_SLACK
+                    movers, R = {N + a.obj, *a.team}, ts.travel_radius(a.obj, a.team)
                 space = ts.region_graph.travel_space(R, a.src, a.dst)
                 start, goal = X[op.entity], np.asarray(op.goal, dtype=float)
                 disks = [Point(*X[e]).buffer(radii[e] + R) for e in range(len(X)) if e not in movers]

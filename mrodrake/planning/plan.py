@@ -385,8 +385,10 @@ def task_words(scenario, ts: TransitionSystem) -> tuple[Formula, NBA, ExecutedWo
     return f, nba, ExecutedWords(ts, nba, relevant_mask(ts, f))
 
 
-def _check_budget(planner: str, iterations: int | None, time_limit: float | None) -> None:
-    """One-line UserErrors for an unknown planner or a budget that is not positive."""
+def _check_budget(planner: str, iterations: int | None, time_limit: float | None, seed: int | None = None) -> None:
+    """One-line UserErrors for an unknown planner, a budget that is not positive or a negative seed."""
+    if seed is not None and seed < 0:
+        raise UserError(f"--seed: must be >= 0, got {seed}")
     if planner not in ("stylus", "exact"):
         raise UserError(f"--planner: unknown planner '{planner}' (expected 'stylus' or 'exact')")
     if iterations is not None and iterations <= 0:
@@ -429,7 +431,9 @@ def _plan_scenario(scenario, planner, seed, iterations, time_limit, progress, re
                    layout_seed, place) -> Plan:
     if not isinstance(scenario, Scenario):
         scenario = load_scenario(scenario)
-    _check_budget(planner, iterations, time_limit)
+    _check_budget(planner, iterations, time_limit, seed)
+    if layout_seed is not None and layout_seed < 0:
+        raise UserError(f"--seed: must be >= 0, got {layout_seed}")
     if suffix_cycles < 0:
         raise UserError(f"suffix_cycles: must be >= 0, got {suffix_cycles}")
     t0 = time.perf_counter()
@@ -537,7 +541,7 @@ def plan_graph(ts, formula: str | None = None, planner: str = "stylus", seed: in
     STyLuS* finds none."""
     if not isinstance(ts, GraphTS):
         ts = load_graph_ts(ts)
-    _check_budget(planner, iterations, time_limit)
+    _check_budget(planner, iterations, time_limit, seed)
     t0 = time.perf_counter()
     f, nba = graph_task_nba(ts, formula)
     words = SourceWords(ts, nba, relevant_mask(ts, f))

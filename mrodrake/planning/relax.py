@@ -8,9 +8,11 @@ them or constrains the others:
 
 * an entity is in a region or between two regions (leaving k for k', then entering k'); it travels only
   between regions connected for its radius (robots) or for the smallest covering radius a team strong
-  enough to carry it can have (objects: :meth:`~mrodrake.ts.TransitionSystem.smallest_team_radius`; a
-  larger radius only removes connections); objects no team can move
-  (:func:`~mrodrake.planning.exact.immovable_objects`) and robots without a passage never move;
+  enough to carry it can have, plus the docking slack of :meth:`~mrodrake.ts.TransitionSystem.travel_radius`,
+  and only between regions where that team, of robots that can reach both, fits (objects:
+  :meth:`~mrodrake.ts.TransitionSystem.carry_connections`; a larger radius only removes connections);
+  objects no team can move (:func:`~mrodrake.planning.exact.immovable_objects`) and robots without a passage
+  never move;
 * packing (P_s), step capacity, Λ and grasping are dropped: entities of E move independently, one visible
   crossing per letter, any number of invisible ones (ε, closed over);
 * entities outside E are unconstrained: an NBA cube is usable if E's part holds on the letter and the rest
@@ -83,8 +85,8 @@ def entity_connections(ts: TransitionSystem, immovable) -> list[np.ndarray]:
     for i in range(ts.N):
         out.append(ts.connections(ts.robot_radius[i]).copy())
     for j in range(ts.M):
-        r = None if j in immovable else ts.smallest_team_radius(j)
-        out.append(np.zeros((K, K), dtype=bool) if r is None else ts.connections(r).copy())
+        C = None if j in immovable else ts.carry_connections(j)
+        out.append(np.zeros((K, K), dtype=bool) if C is None else C.copy())
     for C in out:
         np.fill_diagonal(C, False)
     return out

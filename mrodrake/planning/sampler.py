@@ -215,7 +215,7 @@ class SuccessorSampler:
             team = teams[j]
             have = sum(self.power[i] for i in team)
             if team and have >= self.required_power[j]:
-                units.append(("T", j, self._hop(self.ts.covering_radius(j, tuple(team)), k, k2), tuple(team)))
+                units.append(("T", j, self._hop(self.ts.travel_radius(j, tuple(team)), k, k2), tuple(team)))
                 stays[j] = False
                 for i in team:
                     decided[i] = True
@@ -315,7 +315,7 @@ class SuccessorSampler:
         for j in range(M):
             team = teams[j]
             if team and sum(self.power[i] for i in team) >= self.required_power[j] and rng.random() < 0.5:
-                C = self.ts.travel(self.ts.covering_radius(j, tuple(team)))[O[j]]
+                C = self.ts.travel(self.ts.travel_radius(j, tuple(team)))[O[j]]
                 dests = [k for k in range(K) if k != O[j] and C[k]]
                 if not dests:
                     continue

@@ -188,7 +188,7 @@ class _Transitions:
             U = np.zeros(ts.K, dtype=bool)
             U[o] = True
             if team and not power < ts.required_power[j]:
-                C = ts.travel(ts.covering_radius(j, team))
+                C = ts.travel(ts.travel_radius(j, team))
                 U |= C[:, o]
             self._objects[key] = U
         return U

@@ -74,8 +74,9 @@ def travellers(ts: TransitionSystem) -> list[Traveller]:
             continue
         team, r = best
         names = tuple(ts.robot_names[i] for i in team)
-        label = f"object {ts.object_names[j]} with {'+'.join(names)} (covering radius {r:.2f} m)"
-        out.append(_traveller(ts, label, r, {ts.object_names[j]: ts.initial[ts.N + j]}, names))
+        label = (f"object {ts.object_names[j]} with {'+'.join(names)} (covering radius {r:.2f} m, "
+                 f"travels as r = {ts.travel_radius(j, team):.2f} m)")
+        out.append(_traveller(ts, label, ts.travel_radius(j, team), {ts.object_names[j]: ts.initial[ts.N + j]}, names))
     return out
 
 

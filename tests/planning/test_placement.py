@@ -342,3 +342,36 @@ def test_a_plan_placement_rejects_is_replaced_by_one_it_places():
     rejected = plan.stats["placement"]["rejected"]
     assert len(rejected) >= 1 and all("region 'p" in r for r in rejected)
     assert plan.placement is not None and plan.placement.steps
+
+
+def _two_objects_one_small_room(formula: str) -> dict:
+    """p1 (radius 1.3 m) starts with four robots and two objects that each need a two-robot team (covering
+    radius 0.8 m): both team disks cannot be reserved at once, and the object whose team forms second must
+    still stand where its team's slots fit in p1 (at most 0.83 m from the centre)."""
+    return {
+        "name": "two_objects_one_small_room",
+        "workspace": {"boundary": [[0, 0], [14, 0], [14, 9], [0, 9]],
+                      "obstacles": [{"name": "pillar", "polygon": [[6.5, 4], [7.5, 4], [7.5, 5], [6.5, 5]]}]},
+        "regions": [{"name": "p1", "center": [3, 3], "radius": 1.3}, {"name": "p2", "center": [11, 3], "radius": 1.2},
+                    {"name": "p3", "center": [7, 7.3], "radius": 1.3}],
+        "robots": [{"name": f"r{i}", "mass": 1.0, "radius": 0.25, "power": 2, "initial_region": "p1"}
+                   for i in range(1, 5)],
+        "objects": [{"name": f"o{j}", "mass": 0.25, "radius": 0.2, "required_power": 4, "initial_region": "p1"}
+                    for j in (1, 2)],
+        "control": {"margin": 0.2},
+        "task": {"formula": formula},
+    }
+
+
+def test_an_object_whose_team_disk_is_not_reserved_starts_where_its_team_can_form():
+    sc = scenario_from_dict(_two_objects_one_small_room("F(o1_p2 & F(o2_p3 & o1_p1))"))
+    plan = plan_scenario(sc, seed=0, iterations=2000)
+    ts = TransitionSystem(sc)
+    initial = np.asarray(plan.placement.initial)
+    centre = np.array([3.0, 3.0])
+    first = [a for _, _, _, _, _, _, acts, _ in plan.steps() for a in acts if isinstance(a, Transport)]
+    for j in (0, 1):
+        team = next(a.team for a in first if a.obj == j)
+        xo = initial[ts.N + j]
+        assert any(np.all(np.linalg.norm(layout_slots(ts, j, team, xo, rot) - centre, axis=1) <= 1.3 - 0.25 - 0.05)
+                   for rot in np.linspace(0.0, 2.0 * math.pi, 72, endpoint=False)), (j, xo)

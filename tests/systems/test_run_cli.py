@@ -37,6 +37,13 @@ def test_a_bad_option_value_is_one_line_naming_the_option(args, option, capsys):
     assert exc.value.code == 2 and len(err) == 1 and err[0].startswith("error: mrodrake ") and option in err[0], err
 
 
+@pytest.mark.parametrize("command", ["plan", "run"])
+def test_a_negative_seed_is_one_line_naming_the_option(command, tmp_path, capsys):
+    extra = ["--out", str(tmp_path)] if command == "run" else []
+    assert cli.main([command, str(TINY), "--seed", "-3", *extra]) == 2
+    assert capsys.readouterr().err.strip().splitlines() == ["error: --seed: must be >= 0, got -3"]
+
+
 def test_plan_that_does_not_verify_is_a_user_error(tmp_path, capsys):
     plan = plan_scenario(load_scenario(TINY), "stylus", seed=0)
     path = tmp_path / "plan.json"

@@ -50,7 +50,7 @@ def test_the_margin_decides_which_doors_a_small_floor_has():
         assert ts.connected(team, 1, 3) is passes
     with pytest.raises(UserError) as e:
         plan_scenario(scenario_from_dict(closet()), iterations=100)
-    assert "grown by the radius + control.margin 0.5 m" in str(e.value)
+    assert "grown by the covering radius + slack 0.05 m + control.margin 0.5 m" in str(e.value)
 
 
 def test_a_margin_below_the_design_range_is_warned_about(tmp_path, capsys):
