@@ -4,8 +4,9 @@
 office (``map=None``, ``mrodrake bench plan``) it reuses the boundary and obstacles of
 ``scenarios/case_study_1.yaml`` and places the K region disks at fixed candidate centres inside its rooms
 and corridor.  On a map (``map=`` a scenario file, a shipped map name such as ``"lab"`` from
-``scenarios/maps/``, or a :class:`~mrodrake.scenario.Scenario`) it takes the map's workspace and layout,
-and K of the map's own regions (centres, radii and names), chosen by the seed.
+``scenarios/maps/``, or a :class:`~mrodrake.scenario.Scenario`) it takes the map's workspace, layout and
+control settings (a small floor's ``control.margin``), and K of the map's own regions (centres, radii and
+names), chosen by the seed.
 
 It then draws N robots and M objects with powers and required powers such that a team of at most three
 robots can move every object, puts them in random regions where they fit (P_s), and writes a random task
@@ -19,6 +20,7 @@ small lab's robots have r = 0.5, so its objects are 0.13-0.27 m).  Masses stay 1
 
 from __future__ import annotations
 
+import dataclasses
 from functools import lru_cache
 from pathlib import Path
 
@@ -26,7 +28,7 @@ import numpy as np
 import yaml
 
 from mrodrake.packing import entities_fit
-from mrodrake.scenario import Scenario, load_scenario, scenario_from_dict
+from mrodrake.scenario import ControlGains, Scenario, load_scenario, scenario_from_dict
 
 ROOT = Path(__file__).resolve().parents[2] / "scenarios"
 OFFICE = ROOT / "case_study_1.yaml"
@@ -100,7 +102,7 @@ def generate_scenario_data(n: int, m: int, k: int, seed: int, region_radius: flo
     if sc_map is None:
         R = region_radius if region_radius is not None else (4.0 if n + m <= 8 else 5.0)
         regions = [{"name": f"p{i + 1}", "center": list(CENTRES[i]), "radius": R} for i in range(k)]
-        name, site, workspace, layout = "gen", "the case-study office", _office_workspace(), None
+        name, site, workspace, layout, control = "gen", "the case-study office", _office_workspace(), None, {}
         robot_radius = ROBOT_RADIUS
     else:
         chosen = sorted(int(i) for i in rng.choice(max_k, size=k, replace=False))
@@ -109,6 +111,8 @@ def generate_scenario_data(n: int, m: int, k: int, seed: int, region_radius: flo
                    for i in chosen]
         name, site, workspace = f"gen_{sc_map.name}", f"map {sc_map.name}", _workspace_dict(sc_map)
         layout = {"grasp_gap": sc_map.layout.grasp_gap, "spacing": sc_map.layout.spacing}
+        default = dataclasses.asdict(ControlGains())
+        control = {key: v for key, v in dataclasses.asdict(sc_map.control).items() if v != default[key]}
         robot_radius = max(r.radius for r in sc_map.robots)
     radii = [float(g["radius"]) for g in regions]
     names = [g["name"] for g in regions]
@@ -151,6 +155,8 @@ def generate_scenario_data(n: int, m: int, k: int, seed: int, region_radius: flo
     }
     if layout is not None:
         data["layout"] = layout
+    if control:
+        data["control"] = control
     data["planning"] = {"seed": int(seed)}
     return data
 

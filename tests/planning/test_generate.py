@@ -4,6 +4,7 @@ violated at once."""
 from __future__ import annotations
 
 import pytest
+import yaml
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -11,7 +12,8 @@ from mrodrake.logic.formula import atoms
 from mrodrake.logic.lasso import holds_at
 from mrodrake.logic.parse import parse
 from mrodrake.planning.exact import immovable_objects
-from mrodrake.planning.generate import MAPS, MAX_K, generate_scenario, load_map, shipped_maps
+from mrodrake.planning.generate import MAPS, MAX_K, generate_scenario, generate_scenario_data, load_map, shipped_maps
+from mrodrake.scenario import ControlGains
 from mrodrake.ts import TransitionSystem
 
 
@@ -91,3 +93,15 @@ def test_lab_entities_are_scaled():
     sc = generate_scenario(3, 3, 5, 4, map="lab")
     assert {r.radius for r in sc.robots} == {0.5}
     assert all(0.13 <= o.radius <= 0.27 for o in sc.objects)
+
+
+def test_a_map_keeps_its_control_settings(tmp_path):
+    """A small floor's map with ``control.margin: 0.1`` (its doors pass teams only with it) gives generated
+    scenarios that margin; the shipped maps, with the default control settings, give none."""
+    from tests.systems.test_scale import closet
+
+    path = tmp_path / "closet.yaml"
+    path.write_text(yaml.safe_dump(closet(0.1)))
+    sc = generate_scenario(3, 1, 4, 0, map=str(path))
+    assert sc.control.margin == 0.1 and sc.control.k1 == ControlGains().k1
+    assert "control" not in generate_scenario_data(3, 1, 4, 0, map="lab")
