@@ -1117,32 +1117,12 @@ class _Placer:
         return Placement(tuple(map(tuple, initial.tolist())), tuple(out))
 
 
-#: Half the narrowest passage (m) a moving entity's centre is given between the entities in its way: the
-#: executor finds its way on grids of 0.25 m (``control/windows.py``), which an 8-connected grid resolves in
-#: every direction only in passages wider than 0.25 √2 m; a thinner gap (two robots parked across a corridor
-#: end, 0.22 m left for the third) passes the bare geometry and leaves the motion nowhere to go.
-PASSAGE_HALF_WIDTH = 0.25
-
-
-def _passes(space, blocks, start, goal) -> bool:
-    """Does ``space`` minus the union ``blocks`` join ``start`` and ``goal`` through passages at least
-    2 × :data:`PASSAGE_HALF_WIDTH` wide?  The passages are those of the set eroded by the half width; an end
-    joins the component of the eroded set within the half width of it (the straight leg to it stays in the
-    set: every point of the eroded set has that much room around it)."""
-    rest = space.difference(blocks) if blocks is not None and not blocks.is_empty else space
-    core = rest.buffer(-PASSAGE_HALF_WIDTH)
-    reach = PASSAGE_HALF_WIDTH + 1e-6
-    p0, p1 = Point(*start), Point(*goal)
-    return any(q.distance(p0) <= reach and q.distance(p1) <= reach for q in getattr(core, "geoms", [core])
-               if not q.is_empty)
-
 
 def unreachable_arrival(ts: TransitionSystem, placement: Placement) -> PlacementError | None:
     """The first navigation or transport of the placed run whose goal the free space of the moving entity
     does not connect with its start (the sequencer's test, paper Sec. III-A: walls, obstacles and the other
     regions grown by radius + ``control.margin``, the other entities' bodies by the
-    radius) through passages the executor resolves (:func:`_passes`), as a PlacementError naming the step;
-    None when every arrival is reachable."""
+    radius), as a PlacementError naming the step; None when every arrival is reachable."""
     N = ts.N
     radii = np.array(list(ts.robot_radius) + list(ts.object_radius), dtype=float)
     X = np.array(placement.initial, dtype=float)
@@ -1158,13 +1138,15 @@ def unreachable_arrival(ts: TransitionSystem, placement: Placement) -> Placement
                 space = ts.region_graph.travel_space(R, a.src, a.dst)
                 start, goal = X[op.entity], np.asarray(op.goal, dtype=float)
                 disks = [Point(*X[e]).buffer(radii[e] + R) for e in range(len(X)) if e not in movers]
-                if space is None or not _passes(space, unary_union(disks) if disks else None, start, goal):
+                rest = space.difference(unary_union(disks)) if space is not None and disks else space
+                parts = [] if rest is None else list(getattr(rest, "geoms", [rest]))
+                p0, p1 = Point(*start).buffer(1e-3), Point(*goal).buffer(1e-3)
+                if not any(q.intersects(p0) and q.intersects(p1) for q in parts):
                     who = ts.format_action(a, "names")
                     return PlacementError(
                         f"step {sp_.step.index} (plan step {sp_.step.plan_step}): region "
                         f"'{ts.region_names[a.dst]}': the goal ({goal[0]:.3f}, {goal[1]:.3f}) of {who} is "
-                        f"separated from its start by the entities in the way (radius {R:.2f} m, passages "
-                        f"narrower than {2 * PASSAGE_HALF_WIDTH:.2f} m closed)", sp_.step, a.dst)
+                        f"separated from its start by the entities in the way (radius {R:.2f} m)", sp_.step, a.dst)
                 for e in movers:
                     X[e] = end[e]
             else:
