@@ -7,11 +7,8 @@ import numpy as np
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from mrodrake.errors import NoPlanFound, UserError
-from mrodrake.execution.schedule import critical_path, dependency_graph, makespan_bounds
-from mrodrake.planning.generate import generate_scenario_data
-from mrodrake.planning.plan import plan_scenario, task_words
-from mrodrake.scenario import scenario_from_dict
+from mrodrake.execution.schedule import critical_path, makespan_bounds
+from tests.helpers.jobs import generated_jobs
 
 
 @st.composite
@@ -54,13 +51,10 @@ def test_a_chain_takes_the_sum_and_independent_jobs_the_longest():
 @settings(max_examples=15, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(n=st.integers(2, 4), m=st.integers(0, 2), seed=st.integers(0, 10_000))
 def test_weaker_graphs_allow_no_longer_schedules(n, m, seed):
-    sc = scenario_from_dict(generate_scenario_data(n, m, 4, seed))
-    try:
-        plan = plan_scenario(sc, iterations=300, seed=seed, layout_seed=seed)
-    except (NoPlanFound, UserError):
+    planned = generated_jobs(n, m, 4, seed)
+    if planned is None:
         return
-    _f, _nba, words = task_words(sc, plan.ts)
-    jobs = dependency_graph(plan.ts, words, plan.placement)
+    _plan, jobs = planned
     durations = np.random.default_rng(seed).uniform(1.0, 300.0, len(jobs)).tolist()
     b = makespan_bounds(jobs, durations)
     eps = 1e-9
