@@ -1118,6 +1118,33 @@ class _Placer:
 
 
 
+#: Half the narrowest gap (m) beside a parked entity that a moving entity's centre is given (at most half the
+#: mover's radius): the executor finds its way around parked entities on grids of 0.25 m
+#: (``control/windows.py``), and a thinner gap between a parked robot and a wall (two robots parked across a
+#: corridor end, 0.22 m left for the third) passes the bare geometry but leaves the motion nowhere to go.
+#: Passages between walls, obstacles and regions alone keep the control margin instead, as in the TS.
+GAP_HALF_WIDTH = 0.25
+
+
+def _passes(space, disks, start, goal, mover_radius: float) -> bool:
+    """Does ``space`` minus the ``disks`` (centre, radius) join ``start`` and ``goal`` where the gaps beside the
+    disks are at least twice the half width h = min(:data:`GAP_HALF_WIDTH`, mover radius / 2) wide?  The set
+    kept is the morphological opening of the rest by h (thin parts removed) together with the rest farther
+    than 2 h from every disk (passages of the static space alone stay as the TS has them); an end joins a
+    part of it within h (an end keeps only the layout spacing from its neighbours)."""
+    h = min(GAP_HALF_WIDTH, 0.5 * mover_radius)
+    if not disks:
+        rest = space
+    else:
+        near = unary_union([Point(*c).buffer(r + 2.0 * h) for c, r in disks])
+        rest = space.difference(unary_union([Point(*c).buffer(r) for c, r in disks]))
+        rest = rest.buffer(-h).buffer(h).union(rest.difference(near))
+    reach = h + 1e-6
+    p0, p1 = Point(*start), Point(*goal)
+    return any(q.distance(p0) <= reach and q.distance(p1) <= reach for q in getattr(rest, "geoms", [rest])
+               if not q.is_empty)
+
+
 def unreachable_arrival(ts: TransitionSystem, placement: Placement) -> PlacementError | None:
     """The first navigation or transport of the placed run whose goal the free space of the moving entity
     does not connect with its start (the sequencer's test, paper Sec. III-A: walls, obstacles and the other
@@ -1137,16 +1164,14 @@ def unreachable_arrival(ts: TransitionSystem, placement: Placement) -> Placement
                     movers, R = {N + a.obj, *a.team}, ts.travel_radius(a.obj, a.team)
                 space = ts.region_graph.travel_space(R, a.src, a.dst)
                 start, goal = X[op.entity], np.asarray(op.goal, dtype=float)
-                disks = [Point(*X[e]).buffer(radii[e] + R) for e in range(len(X)) if e not in movers]
-                rest = space.difference(unary_union(disks)) if space is not None and disks else space
-                parts = [] if rest is None else list(getattr(rest, "geoms", [rest]))
-                p0, p1 = Point(*start).buffer(1e-3), Point(*goal).buffer(1e-3)
-                if not any(q.intersects(p0) and q.intersects(p1) for q in parts):
+                disks = [(X[e], radii[e] + R) for e in range(len(X)) if e not in movers]
+                if space is None or not _passes(space, disks, start, goal, R):
                     who = ts.format_action(a, "names")
                     return PlacementError(
                         f"step {sp_.step.index} (plan step {sp_.step.plan_step}): region "
                         f"'{ts.region_names[a.dst]}': the goal ({goal[0]:.3f}, {goal[1]:.3f}) of {who} is "
-                        f"separated from its start by the entities in the way (radius {R:.2f} m)", sp_.step, a.dst)
+                        f"separated from its start by the entities in the way (radius {R:.2f} m; gaps beside them "
+                        f"narrower than {2 * min(GAP_HALF_WIDTH, 0.5 * R):.2f} m closed)", sp_.step, a.dst)
                 for e in movers:
                     X[e] = end[e]
             else:

@@ -1,6 +1,6 @@
 """Whole missions on tasks that stress execution: generated tasks whose label monitor, action order and
 integration are delicate ((3, 1, 3, 11), (3, 2, 4, 15), (4, 2, 4, 21), each several minutes on the office map:
-slow set, ``--runslow``); campaign missions on the corridor map (a dead-end goal, a door);
+slow set, ``--runslow``); campaign missions on the corridor map (a dead-end goal, a door, a boxed-in start);
 and an until-task on tiny whose satisfaction depends on which crossing interleavings the geometry allows."""
 
 from __future__ import annotations
@@ -9,10 +9,11 @@ import pytest
 import yaml
 
 from mrodrake.planning.generate import generate_scenario
+from mrodrake.planning.placement import unreachable_arrival
 from mrodrake.planning.plan import plan_scenario
 from mrodrake.run import run_mission
 from mrodrake.scenario import scenario_from_dict
-from tests.helpers.campaign import campaign_mission
+from tests.helpers.campaign import RANDOMIZE, campaign_mission
 from tests.planning.conftest import SCENARIOS
 
 
@@ -48,6 +49,22 @@ def test_a_robot_parked_by_a_door_leaves_the_team_a_way_out(tmp_path):
     of o1: goal unreachable"); spots now keep the region's later trips connected."""
     task, sc, plan = campaign_mission(tmp_path, CORRIDOR_N2_M1_K3_S1.replace("robots: [2]", "robots: [3]"),
                                       "gen_corridor_n3_m1_k3_s1-p0-l0-d0")
+    log = run_mission(sc, plan=plan, seed=task.layout_seed)
+    assert log.ok, log.message
+    assert log.steps_done == log.steps_total
+
+
+def test_a_robot_boxed_in_at_the_corridor_end_gets_a_layout_it_can_leave(tmp_path):
+    """Campaign mission gen_corridor_n3_m1_k4_s1100-p0-l0-d0: the three robots start in p6 at the corridor's
+    west end, r2 east of r1 with 0.22 m left between its grown disk and the grown walls on either side; the
+    bare geometry connected r1 to p2, but no grid path or window found the gap ("navigate of r1: point ... is
+    not inside the circle barrier" at t = 3 s).  Placement now closes gaps narrower than
+    0.5 m beside parked entities."""
+    randomize = RANDOMIZE.replace("seed: 13", "seed: 1100")
+    task, sc, plan = campaign_mission(tmp_path, CORRIDOR_N2_M1_K3_S1.replace("robots: [2]", "robots: [3]")
+                                      .replace("regions: [3]", "regions: [4]").replace("start: 1,", "start: 1100,"),
+                                      "gen_corridor_n3_m1_k4_s1100-p0-l0-d0", randomize=randomize, iterations=3000)
+    assert unreachable_arrival(plan.ts, plan.placement) is None
     log = run_mission(sc, plan=plan, seed=task.layout_seed)
     assert log.ok, log.message
     assert log.steps_done == log.steps_total
