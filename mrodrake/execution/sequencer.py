@@ -479,18 +479,19 @@ class Sequencer:
                 continue
             try:
                 requests.append(self._request(a.uid, op, X[entity, :2], radius, self._disks(X, {entity, *team})))
-            except UserError:  # alone, the motion starts and reports why it cannot move; else it waits
-                if not any(b.motion is not None for b in ed.running):
-                    ed.grants[a.uid] = Corridor(None, self._floor)
+            except UserError:  # waits while another job can clear its way
                 failed.add(a.uid)
         held = [a.motion.corridor.body for a in ed.running if a.motion is not None and a.motion.corridor is not None]
         busy = shapely.union_all(held) if held else None
+        granted = set(ed.grants)
         if requests:
             try:
                 ed.grants.update(assign_corridors(requests, self._floor, busy, self.margin))
             except GEOSException:  # degenerate cells: the first asker alone when nothing moves, else all wait
                 if busy is None:
                     ed.grants[requests[0].uid] = Corridor(None, self._floor)
+        if failed and set(ed.grants) == granted and not any(b.motion is not None for b in ed.running):
+            ed.grants[min(failed)] = Corridor(None, self._floor)  # nothing else moves: it starts and reports why
         asked = {rq.uid for rq in requests} | failed
         ed.running = [replace(a, tried=ed.corridors) if a.uid in asked and a.uid not in ed.grants else a
                       for a in ed.running]

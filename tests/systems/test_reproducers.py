@@ -1,6 +1,6 @@
 """Whole missions on tasks that stress execution: generated tasks whose label monitor, action order and
 integration are delicate ((3, 1, 3, 11), (3, 2, 4, 15), (4, 2, 4, 21), each several minutes on the office map:
-slow set, ``--runslow``); campaign missions on the corridor map (a dead-end goal, a door, a boxed-in start);
+slow set, ``--runslow``); campaign missions on the corridor map (a dead-end goal, a door, boxed-in starts);
 and an until-task on tiny whose satisfaction depends on which crossing interleavings the geometry allows."""
 
 from __future__ import annotations
@@ -66,6 +66,20 @@ def test_a_robot_boxed_in_at_the_corridor_end_gets_a_layout_it_can_leave(tmp_pat
                                       "gen_corridor_n3_m1_k4_s1100-p0-l0-d0", randomize=randomize, iterations=3000)
     assert unreachable_arrival(plan.ts, plan.placement) is None
     log = run_mission(sc, plan=plan, seed=task.layout_seed)
+    assert log.ok, log.message
+    assert log.steps_done == log.steps_total
+
+
+def test_a_concurrent_motion_boxed_in_by_a_parked_robot_waits_for_it_to_leave(tmp_path):
+    """Campaign mission gen_corridor_n3_m2_k4_s1100-p0-l0-d0, concurrent: r1 and r3 leave p6 at the corridor's
+    west end in the same step, and r3's way out runs past r1's spot.  r3 asked first, found no free space and,
+    since nothing was moving, was started to report "goal unreachable" although r1 was ready to clear the way;
+    a motion without a free space now waits while another job can move."""
+    task, sc, plan = campaign_mission(tmp_path, CORRIDOR_N2_M1_K3_S1.replace("robots: [2]", "robots: [3]")
+                                      .replace("objects: [1]", "objects: [2]").replace("regions: [3]", "regions: [4]")
+                                      .replace("start: 1,", "start: 1100,"), "gen_corridor_n3_m2_k4_s1100-p0-l0-d0",
+                                      randomize=RANDOMIZE.replace("seed: 13", "seed: 1100"), iterations=3000)
+    log = run_mission(sc, plan=plan, seed=task.layout_seed, execution="concurrent", prefetch=False)
     assert log.ok, log.message
     assert log.steps_done == log.steps_total
 
