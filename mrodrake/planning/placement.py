@@ -1117,7 +1117,6 @@ class _Placer:
         return Placement(tuple(map(tuple, initial.tolist())), tuple(out))
 
 
-
 #: Half the narrowest gap (m) beside a parked entity that a moving entity's centre is given (at most half the
 #: mover's radius): the executor finds its way around parked entities on grids of 0.25 m
 #: (``control/windows.py``), and a thinner gap between a parked robot and a wall (two robots parked across a
