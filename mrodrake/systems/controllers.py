@@ -286,12 +286,12 @@ class MissionControllers(LeafSystem):
 
     def DoCalcTimeDerivatives(self, context, derivatives):
         _, active, _ = self._tasks.Eval(context)
-        out = np.zeros(2 * len(self.names))
+        out = [0.0] * (2 * len(self.names))
         for q in active:
             ev = self._laws[q].Eval(context)
             out[2 * q] = ev.m_hat_dot
             out[2 * q + 1] = ev.alpha_hat_dot
-        derivatives.get_mutable_vector().SetFromVector(out)
+        derivatives.SetFromVector(out)
 
     def _u_calc(self, q: int):
         def calc(context, output):

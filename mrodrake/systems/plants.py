@@ -386,7 +386,7 @@ class MissionPlants(LeafSystem):
             for k in moving:
                 x0, x1, v0, v1 = s[4 * k : 4 * k + 4].tolist()
                 out[4 * k : 4 * k + 4] = (v0, v1, *self._acceleration(context, params, k, x0, x1, v0, v1, offsets))
-        derivatives.get_mutable_vector().SetFromVector(out)
+        derivatives.SetFromVector(out)
 
     def _member_out(self, q: int, k: int):
         b = 4 * (len(self.robot_names) + len(self.object_names) + q)
