@@ -246,7 +246,7 @@ def segment_distances(p: np.ndarray, q: np.ndarray, centers: np.ndarray) -> np.n
 
 
 def local_path(start, goal, centers, radii, rim_center, rim_radius, clearance: float = PATH_CLEARANCE,
-               nodes_per_disk: int = _NODES_PER_DISK) -> np.ndarray:
+               nodes_per_disk: int = _NODES_PER_DISK, narrow: int = 0) -> np.ndarray:
     """Shortest path of straight legs from ``start`` to ``goal`` inside the disk (rim_center, rim_radius)
     avoiding the disks (centers, radii): waypoints (k, 2), the last one the goal.
 
@@ -255,8 +255,9 @@ def local_path(start, goal, centers, radii, rim_center, rim_radius, clearance: f
     ``nodes_per_disk`` corners at radius (ρ + clearance)/cos(π/n), and 2n at (ρ + need)/cos(π/2n) for gaps
     (between disks, or a disk and the rim) too narrow for the first; consecutive corners of a ring are joined by
     chords tangent to its grown circle (so those chords keep exactly ``need``: the tests allow rounding,
-    :data:`_ROUND`).  Corners lie within ``need`` of the rim, and legs stay in the rim disk by convexity.  Raises
-    ValueError without a path.
+    :data:`_ROUND`).  Corners lie within ``need`` of the rim, and legs stay in the rim disk by convexity.  Without
+    a path, ``need`` is halved up to ``narrow`` times (a gap exactly 2 ``need`` wide is missed by the corner rings
+    by a few mm, and execution narrows planned gaps by its tolerances); raises ValueError if none is found then.
     """
     s = np.asarray(start, dtype=float).reshape(2)
     g = np.asarray(goal, dtype=float).reshape(2)
@@ -275,6 +276,15 @@ def local_path(start, goal, centers, radii, rim_center, rim_radius, clearance: f
         return float(np.min(np.linalg.norm(c - p, axis=1) - rho))
 
     need = min(0.5 * clearance, 0.5 * own_clear(s), 0.5 * own_clear(g))
+    for attempt in range(int(narrow) + 1):
+        path = _visibility_path(s, g, c, rho, rc, rim_radius, clearance, need / 2.0 ** attempt, nodes_per_disk)
+        if path is not None:
+            return path
+    raise ValueError("local path: no collision-free path inside the region between the start and the goal")
+
+
+def _visibility_path(s, g, c, rho, rc, rim_radius, clearance, need, nodes_per_disk) -> np.ndarray | None:
+    """:func:`local_path` for one ``need`` (None: no path)."""
     corners = []
     for n, offset in ((nodes_per_disk, clearance), (2 * nodes_per_disk, need)):
         ang = np.arange(n) * (2.0 * math.pi / n)
@@ -295,7 +305,7 @@ def local_path(start, goal, centers, radii, rim_center, rim_radius, clearance: f
     W = W + W.T
     best, pred = dijkstra(W, directed=False, indices=0, return_predecessors=True)
     if not np.isfinite(best[1]):
-        raise ValueError("local path: no collision-free path inside the region between the start and the goal")
+        return None
     path, k = [], 1
     while k != 0:
         path.append(nodes[k])

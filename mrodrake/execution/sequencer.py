@@ -75,6 +75,10 @@ REST_SPEED = 0.05
 DOCK_TOL = 0.03
 #: Distance (m) to its planned spot at which a navigation or transport is complete.
 GOAL_TOL = 0.05
+#: Halvings of a local motion's path clearance allowed where no path keeps it (:func:`local_path`): entities
+#: dock and stop within DOCK_TOL and GOAL_TOL of their planned points, so a gap that placement checked at the full
+#: clearance can be a few cm narrower (a release on a generated office task: a 0.10 m gap beside a member robot).
+LOCAL_NARROW = 2
 #: Distance (m) to a waypoint of a local motion at which its next leg starts.
 LEG_TOL = 0.25 * PATH_CLEARANCE
 #: Width (m) of the approach ring around a region (less where walls, obstacles or other regions are nearer
@@ -909,7 +913,7 @@ class Sequencer:
         try:
             if op.kind in (OpKind.ROOM, OpKind.RELEASE):  # planned points: others end within GOAL_TOL of theirs
                 goal = clear_goal(goal, centers, radii, c, R, 2.0 * GOAL_TOL)
-            legs = local_path(X[entity, :2], goal, centers, radii, c, R)
+            legs = local_path(X[entity, :2], goal, centers, radii, c, R, narrow=LOCAL_NARROW)
         except ValueError as exc:
             raise _Failure(f"{self._op_text(op)}: {exc}") from None
         start = X[entity, :2].copy()

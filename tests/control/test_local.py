@@ -320,6 +320,32 @@ def test_docking_through_a_gap_only_the_tight_ring_passes():
     np.testing.assert_allclose(path[-1], slot)
 
 
+def test_backing_off_through_a_gap_a_docking_tolerance_narrowed():
+    """Generated office task (4 robots, 2 objects, seed 1201, randomized), release r4 o1 in p1: r4 backs off
+    from o1's north side to its spot south-east; the only way out passes between r1 and the rim, 0.10 m wide
+    after docking, where legs keeping 0.05 m must hug both sides exactly and the corner rings miss it by 2 mm.
+    Strictly there is no path; allowed to narrow, the legs keep a quarter of the clearance and stay in the
+    region."""
+    centers = np.array([[87.674744, -279.650356], [89.429511, -279.180414], [84.851383, -279.515589],
+                        [88.423131, -278.884023]])  # r2, r1, r3 (grown by r4's 0.75 m), o1
+    radii = np.array([1.5, 1.5, 1.5, 0.95])
+    rim_c, rim_r = np.array([88.0, -280.0]), 3.25
+    start, goal = np.array([88.173268, -277.855266]), np.array([90.320646, -280.785554])
+    with pytest.raises(ValueError, match="no collision-free path"):
+        local_path(start, goal, centers, radii, rim_c, rim_r)
+    path = local_path(start, goal, centers, radii, rim_c, rim_r, narrow=2)
+    pts = np.vstack([start, path])
+    clear = segment_distances(pts[:-1], pts[1:], centers) - radii[None, :]
+    own = min(np.min(np.linalg.norm(centers - p, axis=1) - radii) for p in (start, goal))
+    need = min(0.5 * PATH_CLEARANCE, 0.5 * own)
+    assert clear.min() >= 0.25 * need - 1e-9
+    assert np.all(np.linalg.norm(pts - rim_c, axis=1) <= rim_r + 1e-9)
+    np.testing.assert_allclose(path[-1], goal)
+    centers_closed = np.vstack([centers, [[90.77, -278.41]]])  # a disk in the gap: no way out at any clearance
+    with pytest.raises(ValueError, match="no collision-free path"):
+        local_path(start, goal, centers_closed, np.append(radii, 0.2), rim_c, rim_r, narrow=2)
+
+
 def test_exit_path_leaves_a_pocket_between_packed_entities():
     """Case II plan seed 0 (randomized plants), step 52: r3 starts its navigation to p2 after releasing o3, in
     the pocket between r2, o3 and r4 (0.127, 0.122 and 0.175 m from their disks grown by its 0.75 m).  The exit
