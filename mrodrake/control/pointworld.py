@@ -25,7 +25,6 @@ from __future__ import annotations
 
 import itertools
 import math
-import os
 import threading
 import time
 from concurrent.futures import ThreadPoolExecutor
@@ -40,7 +39,7 @@ from scipy.spatial import cKDTree
 from shapely.geometry import MultiPolygon, Polygon
 from shapely.geometry.polygon import orient
 
-from mrodrake.control.treecode import PanelTree, build_tree
+from mrodrake.control.treecode import PanelTree, _cores, build_tree
 from mrodrake.errors import UserError
 
 _SHARP_ANGLE = math.radians(30.0)  # vertices turning more than this are kept as panel ends
@@ -338,29 +337,28 @@ def _kernel_values(x, y, vx, vy, tx, ty, L):
     return W
 
 
-def _assemble(mx, my, vx, vy, tx, ty, L, col, M, M32):
+def _assemble(mx, my, vx, vy, tx, ty, L, col, M, M32) -> float:
     """M[i, col[l]] = W of link l at point i (the closed form of ``_kernel_values``) for every real link
-    (col[l] ≥ 0), written to the float64 ``M`` and its float32 copy ``M32``.  Blocks of rows run on threads of
-    their own (the compiled kernel releases the GIL; a pool per call, so a forked process can assemble too);
-    every entry is computed on its own, so the result does not depend on the number of threads."""
+    (col[l] ≥ 0), written to the float64 ``M`` and its float32 copy ``M32``; returns the largest |W|.  Blocks of
+    rows run on threads of their own (the compiled kernel releases the GIL; a pool per call, so a forked process
+    can assemble too); every entry is computed on its own, so the result does not depend on the number of
+    threads."""
     n = len(mx)
-    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
-    workers = max(1, min(cores, n // 256))
+    workers = max(1, min(_cores(), n // 256))
     if workers == 1:
-        _assemble_rows(0, n, mx, my, vx, vy, tx, ty, L, col, M, M32)
-        return
+        return _assemble_rows(0, n, mx, my, vx, vy, tx, ty, L, col, M, M32)
     bounds = np.linspace(0, n, workers + 1).astype(np.int64)
     with ThreadPoolExecutor(workers) as pool:
         jobs = [pool.submit(_assemble_rows, int(i0), int(i1), mx, my, vx, vy, tx, ty, L, col, M, M32)
                 for i0, i1 in zip(bounds[:-1], bounds[1:])]
-        for job in jobs:
-            job.result()
+        return max(job.result() for job in jobs)
 
 
 @njit(cache=True, nogil=True)
 def _assemble_rows(i0, i1, mx, my, vx, vy, tx, ty, L, col, M, M32):
-    """Rows i0 .. i1 − 1 of :func:`_assemble`."""
+    """Rows i0 .. i1 − 1 of :func:`_assemble`; returns their largest |W|."""
     nv = len(vx)
+    big = 0.0
     for i in range(i0, i1):
         x, y = mx[i], my[i]
         dxa = x - vx[0]
@@ -381,7 +379,9 @@ def _assemble_rows(i0, i1, mx, my, vx, vy, tx, ty, L, col, M, M32):
                 w = ua * (lra - lrb) + L[k] * (lrb - 2.0) + 2.0 * eta * theta
                 M[i, c] = w
                 M32[i, c] = w
+                big = max(big, abs(w))
             dxa, dya, lra, anga = dxb, dyb, lrb, angb
+    return big
 
 
 def _kernel(x, y, vx, vy, tx, ty, L, *, derivs: bool):
@@ -453,16 +453,19 @@ def _workspace(size: int) -> tuple[np.ndarray, np.ndarray]:
     return buf[0][:need].reshape(size, size), buf[1][:need].reshape(size, size)
 
 
-def _solve_refined(M: np.ndarray, rhs: np.ndarray, m32: np.ndarray | None = None) -> np.ndarray:
+def _solve_refined(M: np.ndarray, rhs: np.ndarray, m32: np.ndarray | None = None,
+                   scale_m: float | None = None) -> np.ndarray:
     """Solve M X = rhs to float64 accuracy: float32 LU plus iterative refinement (float64 LU if that stalls).
 
     The float32 copy ``m32`` of the C-ordered M (overwritten) is factorised as Mᵀ (its Fortran-ordered
-    view, no copy) and solved transposed; residuals are computed with the float64 M.
+    view, no copy) and solved transposed; residuals are computed with the float64 M.  ``scale_m`` is the
+    largest |entry| of M (found here if not given).
     """
     a32 = M.astype(np.float32) if m32 is None else m32
     getrf, getrs = get_lapack_funcs(("getrf", "getrs"), (a32,))
     lu, piv, info = getrf(a32.T, overwrite_a=True)
-    scale_m = max(float(M.max()), -float(M.min()))
+    if scale_m is None:
+        scale_m = max(float(M.max()), -float(M.min()))
     if info == 0:
         def solve32(r):
             out, _ = getrs(lu, piv, r.astype(np.float32), trans=1)  # (Mᵀ)ᵀ out = r
@@ -663,8 +666,8 @@ class PointWorldMap:
         M[:, n:] = 0.0
         M[n:, :n] = 0.0
         col = np.where(real, np.cumsum(real) - 1, -1)  # the real links are the panels, in order
-        _assemble(np.ascontiguousarray(mid[:, 0]), np.ascontiguousarray(mid[:, 1]), np.ascontiguousarray(v[:, 0]),
-                  np.ascontiguousarray(v[:, 1]), tx, ty, L_link, col, M, M32)
+        big = _assemble(np.ascontiguousarray(mid[:, 0]), np.ascontiguousarray(mid[:, 1]),
+                        np.ascontiguousarray(v[:, 0]), np.ascontiguousarray(v[:, 1]), tx, ty, L_link, col, M, M32)
         hole_of_panel = rid - 1
         on_hole = hole_of_panel >= 0
         M[np.flatnonzero(on_hole), n + hole_of_panel[on_hole]] = -1.0  # u = b_ℓ on hole ℓ
@@ -678,7 +681,7 @@ class PointWorldMap:
         rhs[np.flatnonzero(ext), 1] = np.sin(theta)
         M32[:, n:] = M[:, n:]
         M32[n:, :n] = M[n:, :n]
-        sol = _solve_refined(M, rhs, M32)
+        sol = _solve_refined(M, rhs, M32, max(big, 1.0, float(L.max())))  # |W|, the ±1 of b_ℓ and c, the L_j
         sigma = sol[:n]
         holes = sol[n : n + n_holes]
         const = sol[n + n_holes]

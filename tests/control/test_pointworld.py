@@ -136,7 +136,8 @@ def test_kernel_hessian_matches_finite_differences():
 def test_compiled_assembly_matches_the_closed_form(rooms):
     """The compiled matrix assembly writes the closed-form W of every panel at every collocation point (links
     between rings skipped), in float64 and float32; both evaluate the same formula in double precision, so
-    they agree to rounding of terms of size |u_a ln r_a| (≤ ~10² here): within 1e-12 × max |W|."""
+    they agree to rounding of terms of size |u_a ln r_a| (≤ ~10² here): within 1e-12 × max |W|; it returns
+    max |W| of what it wrote (the scale of the solve's residual test)."""
     _, pw = rooms
     a, b, rid = pw.panel_start, pw.panel_end, pw.panel_ring
     v, L, tx, ty, real = _chain(a, b, rid)
@@ -145,7 +146,8 @@ def test_compiled_assembly_matches_the_closed_form(rooms):
     W = _kernel(mid[:, 0], mid[:, 1], v[:, 0], v[:, 1], tx, ty, L, derivs=False)[0][:, real]
     M, M32 = np.full((n, n), np.nan), np.full((n, n), np.nan, dtype=np.float32)
     col = np.where(real, np.cumsum(real) - 1, -1)
-    _assemble(mid[:, 0].copy(), mid[:, 1].copy(), v[:, 0].copy(), v[:, 1].copy(), tx, ty, L, col, M, M32)
+    big = _assemble(mid[:, 0].copy(), mid[:, 1].copy(), v[:, 0].copy(), v[:, 1].copy(), tx, ty, L, col, M, M32)
+    assert big == np.abs(M).max()
     scale = np.abs(W).max()
     np.testing.assert_allclose(M, W, rtol=0.0, atol=1e-12 * scale)
     np.testing.assert_allclose(M32, W.astype(np.float32), rtol=2.0 ** -23, atol=2.0 ** -23 * scale)
