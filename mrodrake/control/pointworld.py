@@ -23,7 +23,6 @@ the direct sum over all panels (kept as :meth:`PointWorldMap.evaluate_direct`).
 
 from __future__ import annotations
 
-import itertools
 import math
 import threading
 import time
@@ -150,35 +149,74 @@ def _cone_envelope(s: np.ndarray, h: np.ndarray, perimeter: float, grading: floa
     return np.minimum(fwd, bwd)[n : 2 * n]
 
 
-def _pair_widths(i, j, geom):
-    """2ρ that sample j imposes on the ball tangent at sample i (inf if j does not constrain it)."""
+def _ball_min(rows, width, cols, geom):
+    """Per row i: min over the samples j of ``cols`` inside the ball of diameter width[i] tangent at sample i
+    of the 2ρ = |q − p|² / ((q − p)·n_i) that j imposes on that ball (exactly the samples that give
+    2ρ < width[i]), counting only samples in front of i whose free side faces it and that are not i's
+    neighbours along the boundary (see :func:`_local_width`); inf where there are none."""
     x, y, nx, ny, s, ring_id, perims = geom
-    dx = x[j] - x[i]
-    dy = y[j] - y[i]
-    dn = dx * nx[i] + dy * ny[i]
-    dd = dx * dx + dy * dy
-    ds = np.abs(s[j] - s[i])
-    ri = ring_id[i]
-    ds = np.minimum(ds, perims[ri] - ds)
-    ok = (dn > 0.0) & (dx * nx[j] + dy * ny[j] < 0.0)  # j in front of i, j's free side faces i
-    ok &= (ring_id[j] != ri) | (ds * ds > (_LOCAL_ARC_RATIO**2) * dd)  # not a neighbour along the boundary
-    return np.where(ok, dd / np.where(ok, dn, 1.0), np.inf)
-
-
-def _ball_min(tree, rows, width, cols, geom):
-    """Per row i: min of ``_pair_widths`` over the samples cols[tree index] inside the ball of diameter
-    width[i] tangent at sample i (exactly the samples that give 2ρ < width[i])."""
-    x, y, nx, ny = geom[:4]
     half = 0.5 * width[rows]
-    centres = np.column_stack([x[rows] + half * nx[rows], y[rows] + half * ny[rows]])
-    lists = tree.query_ball_point(centres, half, return_sorted=False)
-    counts = np.fromiter(map(len, lists), dtype=np.intp, count=len(lists))
-    out = np.full(len(lists), np.inf)
-    filled = counts > 0
-    if np.any(filled):
-        j = cols[np.fromiter(itertools.chain.from_iterable(lists), dtype=np.intp, count=int(counts.sum()))]
-        val = _pair_widths(np.repeat(rows, counts), j, geom)
-        out[filled] = np.minimum.reduceat(val, np.cumsum(counts)[filled] - counts[filled])
+    cx = x[rows] + half * nx[rows]
+    cy = y[rows] + half * ny[rows]
+    return _ball_min_grid(cx, cy, half, np.asarray(rows, dtype=np.int64), np.asarray(cols, dtype=np.int64),
+                          x, y, nx, ny, s, np.asarray(ring_id, dtype=np.int64), perims, _LOCAL_ARC_RATIO**2)
+
+
+@njit(cache=True, nogil=True)
+def _ball_min_grid(cx, cy, half, rows, cols, x, y, nx, ny, s, ring_id, perims, arc_ratio2):
+    """:func:`_ball_min` on a uniform grid of the samples ``cols`` (cells of about the median ball radius):
+    every ball scans the cells its bounding box meets and keeps the samples with |q − centre|² ≤ radius²."""
+    m = rows.shape[0]
+    out = np.full(m, np.inf)
+    if m == 0 or cols.shape[0] == 0:
+        return out
+    px = x[cols]
+    py = y[cols]
+    x0, y0 = px.min(), py.min()
+    span = max(px.max() - x0, py.max() - y0, 1e-300)
+    h = max(np.median(half), span / 1024.0, 1e-300)
+    gx = int((px.max() - x0) / h) + 1
+    gy = int((py.max() - y0) / h) + 1
+    cell = np.empty(cols.shape[0], dtype=np.int64)
+    for q in range(cols.shape[0]):
+        cell[q] = min(int((px[q] - x0) / h), gx - 1) * gy + min(int((py[q] - y0) / h), gy - 1)
+    order = np.argsort(cell, kind="mergesort")
+    start = np.zeros(gx * gy + 1, dtype=np.int64)
+    for q in range(cols.shape[0]):
+        start[cell[q] + 1] += 1
+    for c in range(gx * gy):
+        start[c + 1] += start[c]
+    for t in range(m):
+        i = rows[t]
+        r = half[t]
+        r2 = r * r
+        ix0 = max(int(math.floor((cx[t] - r - x0) / h)), 0)
+        ix1 = min(int(math.floor((cx[t] + r - x0) / h)), gx - 1)
+        iy0 = max(int(math.floor((cy[t] - r - y0) / h)), 0)
+        iy1 = min(int(math.floor((cy[t] + r - y0) / h)), gy - 1)
+        best = np.inf
+        ri = ring_id[i]
+        for ix in range(ix0, ix1 + 1):
+            for iy in range(iy0, iy1 + 1):
+                c = ix * gy + iy
+                for q in order[start[c] : start[c + 1]]:
+                    ex = px[q] - cx[t]
+                    ey = py[q] - cy[t]
+                    if ex * ex + ey * ey > r2:
+                        continue
+                    j = cols[q]
+                    dx = x[j] - x[i]
+                    dy = y[j] - y[i]
+                    dn = dx * nx[i] + dy * ny[i]
+                    if not (dn > 0.0 and dx * nx[j] + dy * ny[j] < 0.0):  # j in front of i, facing it
+                        continue
+                    dd = dx * dx + dy * dy
+                    ds = abs(s[j] - s[i])
+                    ds = min(ds, perims[ri] - ds)
+                    if ring_id[j] == ri and ds * ds <= arc_ratio2 * dd:  # a neighbour along the boundary
+                        continue
+                    best = min(best, dd / dn)
+        out[t] = best
     return out
 
 
@@ -209,9 +247,9 @@ def _local_width(xy, nrm, ring_id, s, perims, radii, known=None):
         new = np.flatnonzero(is_new)
         full = np.union1d(new, idx[~settled])
         if len(new) and len(keep):
-            width[keep] = np.minimum(width[keep], _ball_min(cKDTree(xy[new]), keep, width, new, geom))
+            width[keep] = np.minimum(width[keep], _ball_min(keep, width, new, geom))
     if len(full):
-        width[full] = np.minimum(width[full], _ball_min(cKDTree(xy), full, width, np.arange(n), geom))
+        width[full] = np.minimum(width[full], _ball_min(full, width, np.arange(n), geom))
     return width
 
 

@@ -17,6 +17,7 @@ from mrodrake.bench.control import office_like_free_space
 from mrodrake.control.pointworld import (
     PointWorldMap,
     _assemble,
+    _ball_min,
     _chain,
     _kernel,
     _local_width,
@@ -437,6 +438,41 @@ def test_local_width_sees_a_wall_behind_many_own_samples():
     fresh = _local_width(xy2, nrm2, rid2, s2, perims, radii2)
     update = _local_width(xy2, nrm2, rid2, s2, perims, radii2, (np.arange(len(xy)), width, radii))
     np.testing.assert_array_equal(update, fresh)
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_ball_query_on_a_grid_matches_all_pairs(seed):
+    """The compiled ball query finds exactly what testing every pair finds: per sample i, the least
+    2ρ = |q − p|² / ((q − p)·n_i) over the samples q in front of i, facing it, not its neighbours along the
+    boundary and inside its tangent ball of diameter width[i] (balls from 1e-3 to 50 x the sample spacing)."""
+    rng = np.random.default_rng(seed)
+    n = 600
+    xy = rng.uniform(0.0, 10.0, (n, 2))
+    ang = rng.uniform(0.0, 2.0 * np.pi, n)
+    nrm = np.column_stack([np.cos(ang), np.sin(ang)])
+    ring_id = rng.integers(0, 3, n)
+    s = rng.uniform(0.0, 30.0, n)
+    perims = np.array([30.0, 31.0, 32.0])
+    width = 10.0 ** rng.uniform(-3.0, 1.0, n)
+    geom = (xy[:, 0].copy(), xy[:, 1].copy(), nrm[:, 0].copy(), nrm[:, 1].copy(), s, ring_id, perims)
+    rows, cols = np.arange(0, n, 2), np.arange(n)
+    half = 0.5 * width[rows]
+    centre = xy[rows] + half[:, None] * nrm[rows]
+    inside = np.sum((xy[None, :, :] - centre[:, None, :]) ** 2, axis=-1) <= half[:, None] ** 2
+    d = xy[None, :, :] - xy[rows, None, :]
+    dn = np.einsum("ijk,ik->ij", d, nrm[rows])
+    facing = np.einsum("ijk,jk->ij", d, nrm) < 0.0
+    dd = np.sum(d * d, axis=-1)
+    ds = np.abs(s[None, :] - s[rows, None])
+    ds = np.minimum(ds, perims[ring_id[rows]][:, None] - ds)
+    apart = (ring_id[None, :] != ring_id[rows, None]) | (ds * ds > 2.5**2 * dd)
+    ok = inside & (dn > 0.0) & facing & apart
+    expected = np.where(ok, dd / np.where(ok, dn, 1.0), np.inf).min(axis=1)
+    assert np.isfinite(expected).sum() > len(rows) // 4
+    np.testing.assert_array_equal(_ball_min(rows, width, cols, geom), expected)
+    part = cols[::3]
+    expected_part = np.where(ok[:, part], (dd / np.where(ok, dn, 1.0))[:, part], np.inf).min(axis=1)
+    np.testing.assert_array_equal(_ball_min(rows, width, part, geom), expected_part)
 
 
 def test_case_study_map_collapses_holes_in_one_solve():
