@@ -595,13 +595,48 @@ def _solve_refined(M: np.ndarray, rhs: np.ndarray, m32: np.ndarray | None = None
         x = solve32(rhs)
         scale = scale_m * np.abs(x).max() + np.abs(rhs).max()
         for _ in range(10):
-            r = rhs - M @ x
+            r = _residual(M, x, rhs)
             if np.abs(r).max() <= 1e-13 * scale:
                 return x
             x += solve32(r)
-        if np.all(np.isfinite(x)) and np.abs(rhs - M @ x).max() <= 1e-11 * scale:
+        if np.all(np.isfinite(x)) and np.abs(_residual(M, x, rhs)).max() <= 1e-11 * scale:
             return x
     return scipy.linalg.lu_solve(scipy.linalg.lu_factor(M, check_finite=False), rhs, check_finite=False)
+
+
+def _residual(M: np.ndarray, x: np.ndarray, rhs: np.ndarray) -> np.ndarray:
+    """rhs − M x in float64; for two right-hand sides by a compiled pass over the rows of M (one read of M for
+    both, blocks of rows on threads of their own: every row is summed on its own, so the result does not depend
+    on the number of threads)."""
+    if rhs.ndim != 2 or rhs.shape[1] != 2 or not M.flags.c_contiguous:
+        return rhs - M @ x
+    n = M.shape[0]
+    out = np.empty_like(rhs)
+    x0, x1 = np.ascontiguousarray(x[:, 0]), np.ascontiguousarray(x[:, 1])
+    workers = max(1, min(_cores(), n // 1024))
+    bounds = np.linspace(0, n, workers + 1).astype(np.int64)
+    if workers == 1:
+        _residual_rows(0, n, M, x0, x1, rhs, out)
+        return out
+    with ThreadPoolExecutor(workers) as pool:
+        for job in [pool.submit(_residual_rows, int(i0), int(i1), M, x0, x1, rhs, out)
+                    for i0, i1 in zip(bounds[:-1], bounds[1:])]:
+            job.result()
+    return out
+
+
+@njit(cache=True, nogil=True, fastmath=True)
+def _residual_rows(i0, i1, M, x0, x1, rhs, out):
+    """Rows i0 .. i1 − 1 of :func:`_residual` (each row's dot products summed in vector lanes)."""
+    for i in range(i0, i1):
+        row = M[i]
+        a = 0.0
+        b = 0.0
+        for j in range(row.shape[0]):
+            a += row[j] * x0[j]
+            b += row[j] * x1[j]
+        out[i, 0] = rhs[i, 0] - a
+        out[i, 1] = rhs[i, 1] - b
 
 
 def _as_points(x) -> tuple[np.ndarray, bool]:

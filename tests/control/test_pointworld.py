@@ -14,6 +14,7 @@ from shapely.geometry import MultiPolygon, Point, Polygon, box
 from shapely.ops import unary_union
 
 from mrodrake.bench.control import office_like_free_space
+from mrodrake.control import pointworld
 from mrodrake.control.pointworld import (
     PointWorldMap,
     _assemble,
@@ -21,6 +22,7 @@ from mrodrake.control.pointworld import (
     _chain,
     _kernel,
     _local_width,
+    _residual,
     _separation,
     _vertex_logs_angles,
 )
@@ -181,6 +183,21 @@ def test_vectorised_logs_and_angles_match_the_c_library(scale):
         ang0 = np.arctan2(dy, dx)
         assert np.all(np.abs(lr - lr0) <= 4 * np.spacing(np.abs(lr0)))
         assert np.all(np.abs(ang - ang0) <= 4 * np.spacing(np.abs(ang0)))
+
+
+def test_refinement_residual_matches_numpy_and_ignores_the_thread_count(monkeypatch):
+    """The compiled residual of the refinement agrees with rhs − M x to rounding of the dot products
+    (n ε |M| |x|) and gives the same bits on one thread as on several."""
+    rng = np.random.default_rng(5)
+    n = 2500
+    M = rng.standard_normal((n, n))
+    x = rng.standard_normal((n, 2))
+    rhs = M @ x + 1e-9 * rng.standard_normal((n, 2))
+    monkeypatch.setattr(pointworld, "_cores", lambda: 2)
+    split = _residual(M, x, rhs)
+    np.testing.assert_allclose(split, rhs - M @ x, rtol=0.0, atol=n * 2.0**-52 * np.abs(M).max() * np.abs(x).max())
+    monkeypatch.setattr(pointworld, "_cores", lambda: 1)
+    np.testing.assert_array_equal(_residual(M, x, rhs), split)
 
 
 def _build_in_child(queue):
