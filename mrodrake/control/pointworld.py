@@ -1080,11 +1080,23 @@ class PointWorldMap:
 
 
 def _hole_gaps(poly: Polygon) -> np.ndarray:
-    """Per hole: its distance to the nearest other boundary ring (the outer boundary or another hole)."""
-    rings = np.array([poly.exterior, *poly.interiors], dtype=object)
-    d = shapely.distance(rings[1:, None], rings[None, :])
-    d[np.arange(len(rings) - 1), np.arange(1, len(rings))] = np.inf
-    return d.min(axis=1) if len(rings) > 1 else np.zeros(0)
+    """Per hole: its distance to the nearest other boundary ring (the outer boundary or another hole).
+
+    The distance to the outer boundary is that to its nearest edge (a search tree over the edges); only the
+    holes within that distance are then measured, so each gap is the minimum of the same pairwise distances
+    as over all rings."""
+    holes = np.array(list(poly.interiors), dtype=object)
+    if len(holes) == 0:
+        return np.zeros(0)
+    ext = np.asarray(poly.exterior.coords)
+    edges = shapely.STRtree(shapely.linestrings(np.stack([ext[:-1], ext[1:]], axis=1)))
+    (hole, _), dist = edges.query_nearest(holes, return_distance=True)
+    gap = np.full(len(holes), np.inf)
+    np.minimum.at(gap, hole, dist)
+    i, j = shapely.STRtree(holes).query(holes, predicate="dwithin", distance=gap)
+    other = i != j
+    np.minimum.at(gap, i[other], shapely.distance(holes[i[other]], holes[j[other]]))
+    return gap
 
 
 def _separation(b: np.ndarray) -> np.ndarray:

@@ -20,6 +20,7 @@ from mrodrake.control.pointworld import (
     _assemble,
     _ball_min,
     _chain,
+    _hole_gaps,
     _kernel,
     _local_width,
     _residual,
@@ -490,6 +491,18 @@ def test_ball_query_on_a_grid_matches_all_pairs(seed):
     part = cols[::3]
     expected_part = np.where(ok[:, part], (dd / np.where(ok, dn, 1.0))[:, part], np.inf).min(axis=1)
     np.testing.assert_array_equal(_ball_min(rows, width, part, geom), expected_part)
+
+
+def test_hole_gaps_are_the_least_distance_to_every_other_ring(office):
+    """The tree-pruned gaps equal the minimum over all pairwise ring distances, for holes far from the walls,
+    near each other and in a corridor."""
+    free, _ = office
+    extra = [Point(30.0, 30.0).buffer(2.0), Point(35.0, 30.0).buffer(2.0), box(60.0, 2.0, 62.0, 4.0)]
+    for poly in (free, free.difference(unary_union(extra))):
+        rings = np.array([poly.exterior, *poly.interiors], dtype=object)
+        d = shapely.distance(rings[1:, None], rings[None, :])
+        d[np.arange(len(rings) - 1), np.arange(1, len(rings))] = np.inf
+        np.testing.assert_array_equal(_hole_gaps(poly), d.min(axis=1))
 
 
 def test_case_study_map_collapses_holes_in_one_solve():
