@@ -179,11 +179,11 @@ def _split_nodes(box_lo, box_hi, mid):
 
 
 @njit(cache=True, nogil=True)
-def _node_moments(vert, links, leaf_lo, leaf_hi, first, last, centre, coef, radius):
-    """Radius R and coefficients (m_p / p, m_p, (p + 1) m_p) of every node: the links of leaves first..last − 1
-    (in tree order) about the node's centre."""
+def _node_moments(nodes, vert, links, leaf_lo, leaf_hi, first, last, centre, coef, radius):
+    """Radius R and coefficients (m_p / p, m_p, (p + 1) m_p) of the ``nodes``: the links of leaves
+    first..last − 1 (in tree order) about the node's centre."""
     order = coef.shape[3] - 1
-    for k in range(first.shape[0]):
+    for k in nodes:
         cx = centre[k, 0]
         cy = centre[k, 1]
         R2 = 0.0
@@ -234,7 +234,15 @@ def build_tree(vx, vy, tx, ty, L, sigma_links, ring_of_link, real, const, *, eps
     nn = len(children)
     coef = np.zeros((nn, 2, 3, order + 1), dtype=complex)
     radius = np.empty(nn)
-    _node_moments(vert, links, leaves[tree_order, 0], leaves[tree_order, 1], first_a, last_a, centre, coef, radius)
+    args = (vert, links, leaves[tree_order, 0], leaves[tree_order, 1], first_a, last_a, centre, coef, radius)
+    nodes = np.arange(nn)
+    workers = min(_cores(), max(1, nn // 64))
+    if workers == 1:
+        _node_moments(nodes, *args)
+    else:  # every node on its own (the same bits on any number of threads); every other node balances the work
+        with ThreadPoolExecutor(workers) as pool:
+            for job in [pool.submit(_node_moments, nodes[w::workers], *args) for w in range(workers)]:
+                job.result()
     nodei = np.full((nn, 4), -1, dtype=np.int64)
     nodei[:, :2] = children
     leaf = nodei[:, 0] < 0

@@ -117,3 +117,14 @@ def test_tree_clusters_split_the_leaves_in_pre_order(office):
         links = np.concatenate([np.arange(nodei[q, 2], nodei[q, 3]) for q in leaves_under(k)])
         verts = tree.vert[np.union1d(links, links + 1)]
         assert np.hypot(*(verts - nodef[k, :2]).T).max() <= nodef[k, 2] * (1 + 1e-12)
+
+
+def test_tree_moments_do_not_depend_on_the_thread_count(office, monkeypatch):
+    _, pw = office
+    v, L, tx, ty, real, rings = _chain(pw.panel_start, pw.panel_end, pw.panel_ring, with_rings=True)
+    trees = []
+    for cores in (1, 2):
+        monkeypatch.setattr(treecode, "_cores", lambda c=cores: c)
+        trees.append(build_tree(v[:, 0], v[:, 1], tx, ty, L, pw._sig_links, rings, real, pw._const))
+    for field in ("nodef", "nodei", "coef", "params"):
+        assert np.array_equal(getattr(trees[0], field), getattr(trees[1], field))
