@@ -28,6 +28,7 @@ import threading
 import time
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 import scipy.linalg
@@ -74,11 +75,16 @@ class _Ring:
     def point(self, s: np.ndarray) -> np.ndarray:
         return np.column_stack([np.interp(s, self.cum, self.xy[:, 0]), np.interp(s, self.cum, self.xy[:, 1])])
 
+    @cached_property
+    def tangents(self) -> np.ndarray:
+        """Unit tangent of every edge."""
+        edges = np.diff(self.xy, axis=0)
+        return edges / np.linalg.norm(edges, axis=1)[:, None]
+
     def normal(self, s: np.ndarray) -> np.ndarray:
         """Unit normal pointing into the free space (left of travel); bisector at vertices."""
-        edges = np.diff(self.xy, axis=0)
-        tang = edges / np.linalg.norm(edges, axis=1)[:, None]
-        m = len(edges)
+        tang = self.tangents
+        m = len(tang)
         k = np.clip(np.searchsorted(self.cum, s, side="right") - 1, 0, m - 1)
         t = tang[k].copy()
         at_vertex = np.isclose(s, self.cum[k], rtol=0.0, atol=1e-12 * max(self.perimeter, 1.0))
