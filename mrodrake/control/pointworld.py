@@ -159,39 +159,38 @@ def _ball_min(rows, width, cols, geom):
     """Per row i: min over the samples j of ``cols`` inside the ball of diameter width[i] tangent at sample i
     of the 2ρ = |q − p|² / ((q − p)·n_i) that j imposes on that ball (exactly the samples that give
     2ρ < width[i]), counting only samples in front of i whose free side faces it and that are not i's
-    neighbours along the boundary (see :func:`_local_width`); inf where there are none."""
+    neighbours along the boundary (see :func:`_local_width`); inf where there are none.
+
+    The samples ``cols`` are bucketed in a uniform grid (cells of about the median ball radius); every ball
+    scans the cells its bounding box meets and keeps the samples with |q − centre|² ≤ radius²."""
     x, y, nx, ny, s, ring_id, perims = geom
+    rows = np.asarray(rows, dtype=np.int64)
+    cols = np.asarray(cols, dtype=np.int64)
+    if len(rows) == 0 or len(cols) == 0:
+        return np.full(len(rows), np.inf)
     half = 0.5 * width[rows]
     cx = x[rows] + half * nx[rows]
     cy = y[rows] + half * ny[rows]
-    return _ball_min_grid(cx, cy, half, np.asarray(rows, dtype=np.int64), np.asarray(cols, dtype=np.int64),
-                          x, y, nx, ny, s, np.asarray(ring_id, dtype=np.int64), perims, _LOCAL_ARC_RATIO**2)
+    px, py = x[cols], y[cols]
+    x0, y0 = px.min(), py.min()
+    span = max(px.max() - x0, py.max() - y0, 1e-300)
+    h = max(float(np.median(half)), span / 1024.0, 1e-300)
+    gx = int((px.max() - x0) / h) + 1
+    gy = int((py.max() - y0) / h) + 1
+    cell = np.minimum(((px - x0) / h).astype(np.int64), gx - 1) * gy + np.minimum(((py - y0) / h).astype(np.int64),
+                                                                                    gy - 1)
+    order = np.argsort(cell, kind="stable")
+    start = np.searchsorted(cell[order], np.arange(gx * gy + 1))
+    return _ball_min_grid(cx, cy, half, rows, cols[order], x0, y0, h, gx, gy, start, x, y, nx, ny, s,
+                          np.asarray(ring_id, dtype=np.int64), perims, _LOCAL_ARC_RATIO**2)
 
 
 @njit(cache=True, nogil=True)
-def _ball_min_grid(cx, cy, half, rows, cols, x, y, nx, ny, s, ring_id, perims, arc_ratio2):
-    """:func:`_ball_min` on a uniform grid of the samples ``cols`` (cells of about the median ball radius):
-    every ball scans the cells its bounding box meets and keeps the samples with |q − centre|² ≤ radius²."""
+def _ball_min_grid(cx, cy, half, rows, cols, x0, y0, h, gx, gy, start, x, y, nx, ny, s, ring_id, perims,
+                   arc_ratio2):
+    """The scan of :func:`_ball_min`: ``cols`` sorted by grid cell, cell c holding cols[start[c]:start[c + 1]]."""
     m = rows.shape[0]
     out = np.full(m, np.inf)
-    if m == 0 or cols.shape[0] == 0:
-        return out
-    px = x[cols]
-    py = y[cols]
-    x0, y0 = px.min(), py.min()
-    span = max(px.max() - x0, py.max() - y0, 1e-300)
-    h = max(np.median(half), span / 1024.0, 1e-300)
-    gx = int((px.max() - x0) / h) + 1
-    gy = int((py.max() - y0) / h) + 1
-    cell = np.empty(cols.shape[0], dtype=np.int64)
-    for q in range(cols.shape[0]):
-        cell[q] = min(int((px[q] - x0) / h), gx - 1) * gy + min(int((py[q] - y0) / h), gy - 1)
-    order = np.argsort(cell, kind="mergesort")
-    start = np.zeros(gx * gy + 1, dtype=np.int64)
-    for q in range(cols.shape[0]):
-        start[cell[q] + 1] += 1
-    for c in range(gx * gy):
-        start[c + 1] += start[c]
     for t in range(m):
         i = rows[t]
         r = half[t]
@@ -205,12 +204,12 @@ def _ball_min_grid(cx, cy, half, rows, cols, x, y, nx, ny, s, ring_id, perims, a
         for ix in range(ix0, ix1 + 1):
             for iy in range(iy0, iy1 + 1):
                 c = ix * gy + iy
-                for q in order[start[c] : start[c + 1]]:
-                    ex = px[q] - cx[t]
-                    ey = py[q] - cy[t]
+                for q in range(start[c], start[c + 1]):
+                    j = cols[q]
+                    ex = x[j] - cx[t]
+                    ey = y[j] - cy[t]
                     if ex * ex + ey * ey > r2:
                         continue
-                    j = cols[q]
                     dx = x[j] - x[i]
                     dy = y[j] - y[i]
                     dn = dx * nx[i] + dy * ny[i]
@@ -448,7 +447,7 @@ _TAN_3PI_16 = 0.6681786379192989
 _TAN_PI_8 = 0.41421356237309503
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _odd_series_tail(w):
     """p(w) = Σ_{k=1}^{10} w^(k−1) / (2k + 1), so that atanh(s) = s + s · s² p(s²) and atan(u) = u − u · u²
     p(−u²); the first omitted term is below 1e-17 relative for |w| ≤ 0.04."""

@@ -132,6 +132,32 @@ def _leaf_boxes(vert, leaves):
 
 
 @njit(cache=True, nogil=True)
+def _stable_sort_by(order, lo, hi, key, axis, work):
+    """Sort order[lo:hi] by key[order, axis] keeping the order of equal keys (bottom-up merge sort; ``work``
+    is scratch of the length of ``order``)."""
+    width = 1
+    in_work = False
+    while width < hi - lo:
+        src, dst = (work, order) if in_work else (order, work)
+        for a in range(lo, hi, 2 * width):
+            b = min(a + width, hi)
+            c = min(a + 2 * width, hi)
+            i, j = a, b
+            for t in range(a, c):
+                if i < b and (j >= c or key[src[i], axis] <= key[src[j], axis]):
+                    dst[t] = src[i]
+                    i += 1
+                else:
+                    dst[t] = src[j]
+                    j += 1
+        in_work = not in_work
+        width *= 2
+    if in_work:
+        for t in range(lo, hi):
+            order[t] = work[t]
+
+
+@njit(cache=True, nogil=True)
 def _split_nodes(box_lo, box_hi, mid):
     """The binary tree over the leaves in pre-order: a node's leaves are split into two halves (the first
     ⌊m/2⌋ and the rest) of their order by the centre coordinate along the longer side of their bounding box
@@ -139,11 +165,12 @@ def _split_nodes(box_lo, box_hi, mid):
     position of every node's leaves in the returned leaf order, leaf order)."""
     m = box_lo.shape[0]
     nn = 2 * m - 1
-    children = np.full((nn, 2), -1, dtype=np.int64)
+    children = np.empty((nn, 2), dtype=np.int64)
     centre = np.empty((nn, 2))
     first = np.empty(nn, dtype=np.int64)
     last = np.empty(nn, dtype=np.int64)
     order = np.arange(m)
+    work = np.empty(m, dtype=np.int64)
     stack = np.empty((nn, 3), dtype=np.int64)  # node, first, one-past-last
     stack[0, 0], stack[0, 1], stack[0, 2] = 0, 0, m
     top = 1
@@ -152,23 +179,23 @@ def _split_nodes(box_lo, box_hi, mid):
         k, lo, hi = stack[top, 0], stack[top, 1], stack[top, 2]
         first[k] = lo
         last[k] = hi
-        ids = order[lo:hi]
-        lx, ly = box_lo[ids[0], 0], box_lo[ids[0], 1]
-        ux, uy = box_hi[ids[0], 0], box_hi[ids[0], 1]
-        for q in ids[1:]:
+        q = order[lo]
+        lx, ly = box_lo[q, 0], box_lo[q, 1]
+        ux, uy = box_hi[q, 0], box_hi[q, 1]
+        for t in range(lo + 1, hi):
+            q = order[t]
             lx = min(lx, box_lo[q, 0])
             ly = min(ly, box_lo[q, 1])
             ux = max(ux, box_hi[q, 0])
             uy = max(uy, box_hi[q, 1])
         centre[k, 0] = 0.5 * (lx + ux)
         centre[k, 1] = 0.5 * (ly + uy)
+        children[k, 0] = -1
+        children[k, 1] = -1
         if hi - lo == 1:
             continue
         axis = 1 if uy - ly > ux - lx else 0
-        key = np.empty(hi - lo)
-        for t in range(hi - lo):
-            key[t] = mid[ids[t], axis]
-        order[lo:hi] = ids[np.argsort(key, kind="mergesort")]
+        _stable_sort_by(order, lo, hi, mid, axis, work)
         half = (hi - lo) // 2
         left, right = k + 1, k + 2 * half  # a subtree of h leaves has 2h − 1 nodes
         children[k, 0], children[k, 1] = left, right
