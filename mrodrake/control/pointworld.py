@@ -413,26 +413,29 @@ def _assemble_rows(i0, i1, mx, my, vx, vy, tx, ty, L, runs, M, M32):
     r2 = np.empty(nv)
     mant = np.empty(nv, dtype=np.int64)
     expo = np.empty(nv, dtype=np.int64)
+    wk = np.empty(nv - 1)
     big = 0.0
     for i in range(i0, i1):
         x, y = mx[i], my[i]
         _vertex_logs_angles(x, y, vx, vy, lr, ang, r2, mant, expo)
-        row = M[i]
-        row32 = M32[i]
+        for k in range(nv - 1):  # every link, the ones between rings too (not written)
+            dxa = x - vx[k]
+            dya = y - vy[k]
+            theta = ang[k + 1] - ang[k]
+            theta -= 2.0 * math.pi * np.rint(theta * (0.5 / math.pi))
+            ua = dxa * tx[k] + dya * ty[k]
+            eta = dya * tx[k] - dxa * ty[k]
+            wk[k] = ua * (lr[k] - lr[k + 1]) + L[k] * (lr[k + 1] - 2.0) + 2.0 * eta * theta
         for q in range(runs.shape[0]):
-            shift = runs[q, 2] - runs[q, 0]
-            for k in range(runs[q, 0], runs[q, 1]):
-                dxa = x - vx[k]
-                dya = y - vy[k]
-                theta = ang[k + 1] - ang[k]
-                theta -= 2.0 * math.pi * np.rint(theta * (0.5 / math.pi))
-                ua = dxa * tx[k] + dya * ty[k]
-                eta = dya * tx[k] - dxa * ty[k]
-                w = ua * (lr[k] - lr[k + 1]) + L[k] * (lr[k + 1] - 2.0) + 2.0 * eta * theta
-                row[k + shift] = w
-                row32[k + shift] = w
-            for c in range(runs[q, 2], runs[q, 2] + runs[q, 1] - runs[q, 0]):
-                big = max(big, abs(row[c]))
+            count = runs[q, 1] - runs[q, 0]
+            src = wk[runs[q, 0] : runs[q, 1]]
+            row = M[i, runs[q, 2] : runs[q, 2] + count]
+            row32 = M32[i, runs[q, 2] : runs[q, 2] + count]
+            for t in range(count):
+                row[t] = src[t]
+                row32[t] = src[t]
+            for t in range(count):
+                big = max(big, abs(src[t]))
     return big
 
 
