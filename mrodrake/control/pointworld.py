@@ -634,9 +634,10 @@ def _residual(M: np.ndarray, x: np.ndarray, rhs: np.ndarray) -> np.ndarray:
     return out
 
 
-@njit(cache=True, nogil=True, fastmath=True)
+@njit(cache=True, nogil=True, fastmath={"reassoc", "contract"})
 def _residual_rows(i0, i1, M, x0, x1, rhs, out):
-    """Rows i0 .. i1 − 1 of :func:`_residual` (each row's dot products summed in vector lanes)."""
+    """Rows i0 .. i1 − 1 of :func:`_residual` (each row's dot products summed in vector lanes; infinities and
+    NaNs propagate as without reassociation)."""
     for i in range(i0, i1):
         row = M[i]
         a = 0.0
