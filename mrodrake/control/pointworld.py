@@ -23,13 +23,12 @@ the direct sum over all panels (kept as :meth:`PointWorldMap.evaluate_direct`).
 
 from __future__ import annotations
 
-import itertools
 import math
-import os
 import threading
 import time
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 import scipy.linalg
@@ -40,7 +39,7 @@ from scipy.spatial import cKDTree
 from shapely.geometry import MultiPolygon, Polygon
 from shapely.geometry.polygon import orient
 
-from mrodrake.control.treecode import PanelTree, build_tree
+from mrodrake.control.treecode import PanelTree, _cores, build_tree
 from mrodrake.errors import UserError
 
 _SHARP_ANGLE = math.radians(30.0)  # vertices turning more than this are kept as panel ends
@@ -76,11 +75,16 @@ class _Ring:
     def point(self, s: np.ndarray) -> np.ndarray:
         return np.column_stack([np.interp(s, self.cum, self.xy[:, 0]), np.interp(s, self.cum, self.xy[:, 1])])
 
+    @cached_property
+    def tangents(self) -> np.ndarray:
+        """Unit tangent of every edge."""
+        edges = np.diff(self.xy, axis=0)
+        return edges / np.linalg.norm(edges, axis=1)[:, None]
+
     def normal(self, s: np.ndarray) -> np.ndarray:
         """Unit normal pointing into the free space (left of travel); bisector at vertices."""
-        edges = np.diff(self.xy, axis=0)
-        tang = edges / np.linalg.norm(edges, axis=1)[:, None]
-        m = len(edges)
+        tang = self.tangents
+        m = len(tang)
         k = np.clip(np.searchsorted(self.cum, s, side="right") - 1, 0, m - 1)
         t = tang[k].copy()
         at_vertex = np.isclose(s, self.cum[k], rtol=0.0, atol=1e-12 * max(self.perimeter, 1.0))
@@ -151,35 +155,73 @@ def _cone_envelope(s: np.ndarray, h: np.ndarray, perimeter: float, grading: floa
     return np.minimum(fwd, bwd)[n : 2 * n]
 
 
-def _pair_widths(i, j, geom):
-    """2ρ that sample j imposes on the ball tangent at sample i (inf if j does not constrain it)."""
+def _ball_min(rows, width, cols, geom):
+    """Per row i: min over the samples j of ``cols`` inside the ball of diameter width[i] tangent at sample i
+    of the 2ρ = |q − p|² / ((q − p)·n_i) that j imposes on that ball (exactly the samples that give
+    2ρ < width[i]), counting only samples in front of i whose free side faces it and that are not i's
+    neighbours along the boundary (see :func:`_local_width`); inf where there are none.
+
+    The samples ``cols`` are bucketed in a uniform grid (cells of about the median ball radius); every ball
+    scans the cells its bounding box meets and keeps the samples with |q − centre|² ≤ radius²."""
     x, y, nx, ny, s, ring_id, perims = geom
-    dx = x[j] - x[i]
-    dy = y[j] - y[i]
-    dn = dx * nx[i] + dy * ny[i]
-    dd = dx * dx + dy * dy
-    ds = np.abs(s[j] - s[i])
-    ri = ring_id[i]
-    ds = np.minimum(ds, perims[ri] - ds)
-    ok = (dn > 0.0) & (dx * nx[j] + dy * ny[j] < 0.0)  # j in front of i, j's free side faces i
-    ok &= (ring_id[j] != ri) | (ds * ds > (_LOCAL_ARC_RATIO**2) * dd)  # not a neighbour along the boundary
-    return np.where(ok, dd / np.where(ok, dn, 1.0), np.inf)
-
-
-def _ball_min(tree, rows, width, cols, geom):
-    """Per row i: min of ``_pair_widths`` over the samples cols[tree index] inside the ball of diameter
-    width[i] tangent at sample i (exactly the samples that give 2ρ < width[i])."""
-    x, y, nx, ny = geom[:4]
+    rows = np.asarray(rows, dtype=np.int64)
+    cols = np.asarray(cols, dtype=np.int64)
+    if len(rows) == 0 or len(cols) == 0:
+        return np.full(len(rows), np.inf)
     half = 0.5 * width[rows]
-    centres = np.column_stack([x[rows] + half * nx[rows], y[rows] + half * ny[rows]])
-    lists = tree.query_ball_point(centres, half, return_sorted=False)
-    counts = np.fromiter(map(len, lists), dtype=np.intp, count=len(lists))
-    out = np.full(len(lists), np.inf)
-    filled = counts > 0
-    if np.any(filled):
-        j = cols[np.fromiter(itertools.chain.from_iterable(lists), dtype=np.intp, count=int(counts.sum()))]
-        val = _pair_widths(np.repeat(rows, counts), j, geom)
-        out[filled] = np.minimum.reduceat(val, np.cumsum(counts)[filled] - counts[filled])
+    cx = x[rows] + half * nx[rows]
+    cy = y[rows] + half * ny[rows]
+    px, py = x[cols], y[cols]
+    x0, y0 = px.min(), py.min()
+    span = max(px.max() - x0, py.max() - y0, 1e-300)
+    h = max(float(np.median(half)), span / 1024.0, 1e-300)
+    gx = int((px.max() - x0) / h) + 1
+    gy = int((py.max() - y0) / h) + 1
+    cell = np.minimum(((px - x0) / h).astype(np.int64), gx - 1) * gy + np.minimum(((py - y0) / h).astype(np.int64),
+                                                                                    gy - 1)
+    order = np.argsort(cell, kind="stable")
+    start = np.searchsorted(cell[order], np.arange(gx * gy + 1))
+    return _ball_min_grid(cx, cy, half, rows, cols[order], x0, y0, h, gx, gy, start, x, y, nx, ny, s,
+                          np.asarray(ring_id, dtype=np.int64), perims, _LOCAL_ARC_RATIO**2)
+
+
+@njit(cache=True, nogil=True)
+def _ball_min_grid(cx, cy, half, rows, cols, x0, y0, h, gx, gy, start, x, y, nx, ny, s, ring_id, perims,
+                   arc_ratio2):
+    """The scan of :func:`_ball_min`: ``cols`` sorted by grid cell, cell c holding cols[start[c]:start[c + 1]]."""
+    m = rows.shape[0]
+    out = np.full(m, np.inf)
+    for t in range(m):
+        i = rows[t]
+        r = half[t]
+        r2 = r * r
+        ix0 = max(int(math.floor((cx[t] - r - x0) / h)), 0)
+        ix1 = min(int(math.floor((cx[t] + r - x0) / h)), gx - 1)
+        iy0 = max(int(math.floor((cy[t] - r - y0) / h)), 0)
+        iy1 = min(int(math.floor((cy[t] + r - y0) / h)), gy - 1)
+        best = np.inf
+        ri = ring_id[i]
+        for ix in range(ix0, ix1 + 1):
+            for iy in range(iy0, iy1 + 1):
+                c = ix * gy + iy
+                for q in range(start[c], start[c + 1]):
+                    j = cols[q]
+                    ex = x[j] - cx[t]
+                    ey = y[j] - cy[t]
+                    if ex * ex + ey * ey > r2:
+                        continue
+                    dx = x[j] - x[i]
+                    dy = y[j] - y[i]
+                    dn = dx * nx[i] + dy * ny[i]
+                    if not (dn > 0.0 and dx * nx[j] + dy * ny[j] < 0.0):  # j in front of i, facing it
+                        continue
+                    dd = dx * dx + dy * dy
+                    ds = abs(s[j] - s[i])
+                    ds = min(ds, perims[ri] - ds)
+                    if ring_id[j] == ri and ds * ds <= arc_ratio2 * dd:  # a neighbour along the boundary
+                        continue
+                    best = min(best, dd / dn)
+        out[t] = best
     return out
 
 
@@ -210,9 +252,9 @@ def _local_width(xy, nrm, ring_id, s, perims, radii, known=None):
         new = np.flatnonzero(is_new)
         full = np.union1d(new, idx[~settled])
         if len(new) and len(keep):
-            width[keep] = np.minimum(width[keep], _ball_min(cKDTree(xy[new]), keep, width, new, geom))
+            width[keep] = np.minimum(width[keep], _ball_min(keep, width, new, geom))
     if len(full):
-        width[full] = np.minimum(width[full], _ball_min(cKDTree(xy), full, width, np.arange(n), geom))
+        width[full] = np.minimum(width[full], _ball_min(full, width, np.arange(n), geom))
     return width
 
 
@@ -338,50 +380,138 @@ def _kernel_values(x, y, vx, vy, tx, ty, L):
     return W
 
 
-def _assemble(mx, my, vx, vy, tx, ty, L, col, M, M32):
+def _assemble(mx, my, vx, vy, tx, ty, L, col, M, M32) -> float:
     """M[i, col[l]] = W of link l at point i (the closed form of ``_kernel_values``) for every real link
-    (col[l] ≥ 0), written to the float64 ``M`` and its float32 copy ``M32``.  Blocks of rows run on threads of
-    their own (the compiled kernel releases the GIL; a pool per call, so a forked process can assemble too);
-    every entry is computed on its own, so the result does not depend on the number of threads."""
+    (col[l] ≥ 0; consecutive within a ring), written to the float64 ``M`` and its float32 copy ``M32``; returns
+    the largest |W|.  Blocks of rows run on threads of their own (the compiled kernel releases the GIL; a pool
+    per call, so a forked process can assemble too); every entry is computed on its own, so the result does not
+    depend on the number of threads."""
     n = len(mx)
-    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
-    workers = max(1, min(cores, n // 256))
+    real = np.concatenate([[False], col >= 0, [False]])
+    starts = np.flatnonzero(real[1:] & ~real[:-1])
+    ends = np.flatnonzero(real[:-1] & ~real[1:])
+    runs = np.column_stack([starts, ends, col[starts]]).astype(np.int64)  # first link, end, first column
+    workers = max(1, min(_cores(), n // 256))
     if workers == 1:
-        _assemble_rows(0, n, mx, my, vx, vy, tx, ty, L, col, M, M32)
-        return
+        return _assemble_rows(0, n, mx, my, vx, vy, tx, ty, L, runs, M, M32)
     bounds = np.linspace(0, n, workers + 1).astype(np.int64)
     with ThreadPoolExecutor(workers) as pool:
-        jobs = [pool.submit(_assemble_rows, int(i0), int(i1), mx, my, vx, vy, tx, ty, L, col, M, M32)
+        jobs = [pool.submit(_assemble_rows, int(i0), int(i1), mx, my, vx, vy, tx, ty, L, runs, M, M32)
                 for i0, i1 in zip(bounds[:-1], bounds[1:])]
-        for job in jobs:
-            job.result()
+        return max(job.result() for job in jobs)
 
 
-@njit(cache=True, nogil=True)
-def _assemble_rows(i0, i1, mx, my, vx, vy, tx, ty, L, col, M, M32):
-    """Rows i0 .. i1 − 1 of :func:`_assemble`."""
+@njit(cache=True, nogil=True, error_model="numpy")
+def _assemble_rows(i0, i1, mx, my, vx, vy, tx, ty, L, runs, M, M32):
+    """Rows i0 .. i1 − 1 of :func:`_assemble` (``runs``: first link, one-past-last link and first column of
+    every run of real links); returns their largest |W|.  Per row, ln r² and the angle of x − v at every
+    vertex v come from :func:`_vertex_logs_angles`, θ of a link from the angles at its ends, wrapped to
+    (−π, π]."""
     nv = len(vx)
+    lr = np.empty(nv)
+    ang = np.empty(nv)
+    r2 = np.empty(nv)
+    mant = np.empty(nv, dtype=np.int64)
+    expo = np.empty(nv, dtype=np.int64)
+    wk = np.empty(nv - 1)
+    big = 0.0
     for i in range(i0, i1):
         x, y = mx[i], my[i]
-        dxa = x - vx[0]
-        dya = y - vy[0]
-        lra = math.log(max(dxa * dxa + dya * dya, 1e-300))
-        anga = math.atan2(dya, dxa)
-        for k in range(nv - 1):
-            dxb = x - vx[k + 1]
-            dyb = y - vy[k + 1]
-            lrb = math.log(max(dxb * dxb + dyb * dyb, 1e-300))
-            angb = math.atan2(dyb, dxb)
-            c = col[k]
-            if c >= 0:
-                theta = angb - anga
-                theta -= 2.0 * math.pi * np.rint(theta * (0.5 / math.pi))
-                ua = dxa * tx[k] + dya * ty[k]
-                eta = dya * tx[k] - dxa * ty[k]
-                w = ua * (lra - lrb) + L[k] * (lrb - 2.0) + 2.0 * eta * theta
-                M[i, c] = w
-                M32[i, c] = w
-            dxa, dya, lra, anga = dxb, dyb, lrb, angb
+        _vertex_logs_angles(x, y, vx, vy, lr, ang, r2, mant, expo)
+        for k in range(nv - 1):  # every link, the ones between rings too (not written)
+            dxa = x - vx[k]
+            dya = y - vy[k]
+            theta = ang[k + 1] - ang[k]
+            theta -= 2.0 * math.pi * np.rint(theta * (0.5 / math.pi))
+            ua = dxa * tx[k] + dya * ty[k]
+            eta = dya * tx[k] - dxa * ty[k]
+            wk[k] = ua * (lr[k] - lr[k + 1]) + L[k] * (lr[k + 1] - 2.0) + 2.0 * eta * theta
+        for q in range(runs.shape[0]):
+            count = runs[q, 1] - runs[q, 0]
+            src = wk[runs[q, 0] : runs[q, 1]]
+            row = M[i, runs[q, 2] : runs[q, 2] + count]
+            row32 = M32[i, runs[q, 2] : runs[q, 2] + count]
+            for t in range(count):
+                row[t] = src[t]
+                row32[t] = src[t]
+            for t in range(count):
+                big = max(big, abs(src[t]))
+    return big
+
+
+_LN2_HI = 0.6931471824645996  # ln 2 rounded to float32: e · _LN2_HI is exact for every binary exponent e
+_LN2_LO = -1.904654299957768e-09  # ln 2 − _LN2_HI
+_MANTISSA_BITS = 0x000FFFFFFFFFFFFF
+_EXPONENT_ONE = 0x3FF0000000000000  # bits of 1.0: with a mantissa, a number in [1, 2)
+_TWO52_BITS = 0x4330000000000000  # bits of 2^52: with a biased exponent b in the low bits, 2^52 + b
+_TWO52_BIAS = 4503599627371519.0  # 2^52 + 1023
+_TAN_PI_16 = 0.198912367379658
+_TAN_3PI_16 = 0.6681786379192989
+_TAN_PI_8 = 0.41421356237309503
+
+
+@njit(cache=True, fastmath={"contract"})
+def _odd_series_tail(w):
+    """p(w) = Σ_{k=1}^{10} w^(k−1) / (2k + 1), so that atanh(s) = s + s · s² p(s²) and atan(u) = u − u · u²
+    p(−u²); the first omitted term is below 1e-17 relative for |w| ≤ 0.04.  Horner steps may use fused
+    multiply-adds (a correction term: its rounding stays far below the last place of the result)."""
+    p = 1.0 / 21.0 + w / 23.0
+    p = 1.0 / 19.0 + w * p
+    p = 1.0 / 17.0 + w * p
+    p = 1.0 / 15.0 + w * p
+    p = 1.0 / 13.0 + w * p
+    p = 1.0 / 11.0 + w * p
+    p = 1.0 / 9.0 + w * p
+    p = 1.0 / 7.0 + w * p
+    p = 1.0 / 5.0 + w * p
+    return 1.0 / 3.0 + w * p
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _vertex_logs_angles(x, y, vx, vy, lr, ang, r2, mant, expo):
+    """lr[k] = ln max(|p − v_k|², 1e-300) and ang[k] = atan2 of p − v_k for p = (x, y), within a few units in
+    the last place of the C library's functions (tested).  Written without calls or branches so that the
+    loops run on vector registers: ln r² = e ln 2 + 2 atanh((m − 1)/(m + 1)) with r² = 2^e m, m in
+    [√½, √2) (split off by the bits of r²); atan of t = min/max(|Δx|, |Δy|) ≤ 1 as atan(c) + atan((t − c) /
+    (1 + t c)) with c in {0, tan π/8, 1} chosen so that the argument is at most tan π/16 in magnitude, then
+    unfolded by octant.  ``r2``, ``mant`` and ``expo`` are work arrays of the length of ``vx``."""
+    nv = vx.shape[0]
+    bits = r2.view(np.int64)
+    m_view = mant.view(np.float64)
+    e_view = expo.view(np.float64)
+    for k in range(nv):
+        dx = x - vx[k]
+        dy = y - vy[k]
+        r2[k] = max(dx * dx + dy * dy, 1e-300)
+    for k in range(nv):
+        b = bits[k]
+        mant[k] = (b & _MANTISSA_BITS) | _EXPONENT_ONE
+        expo[k] = (b >> 52) | _TWO52_BITS
+    for k in range(nv):
+        m = m_view[k]
+        e = e_view[k] - _TWO52_BIAS
+        high = m > math.sqrt(2.0)
+        m = 0.5 * m if high else m
+        e = e + 1.0 if high else e
+        f = m - 1.0
+        s = f / (2.0 + f)
+        t = 2.0 * s
+        z = s * s
+        lr[k] = e * _LN2_HI + (e * _LN2_LO + (t + t * (z * _odd_series_tail(z))))
+    for k in range(nv):
+        dx = x - vx[k]
+        dy = y - vy[k]
+        ax = abs(dx)
+        ay = abs(dy)
+        t = min(ax, ay) / max(max(ax, ay), 1e-300)
+        c = (1.0 if t > _TAN_3PI_16 else _TAN_PI_8) if t > _TAN_PI_16 else 0.0
+        base = (0.25 * math.pi if t > _TAN_3PI_16 else 0.125 * math.pi) if t > _TAN_PI_16 else 0.0
+        u = (t - c) / (1.0 + t * c)
+        z = u * u
+        a = base + (u - u * (z * _odd_series_tail(-z)))
+        a = 0.5 * math.pi - a if ay > ax else a
+        a = math.pi - a if dx < 0.0 else a
+        ang[k] = -a if dy < 0.0 else a
 
 
 def _kernel(x, y, vx, vy, tx, ty, L, *, derivs: bool):
@@ -453,16 +583,19 @@ def _workspace(size: int) -> tuple[np.ndarray, np.ndarray]:
     return buf[0][:need].reshape(size, size), buf[1][:need].reshape(size, size)
 
 
-def _solve_refined(M: np.ndarray, rhs: np.ndarray, m32: np.ndarray | None = None) -> np.ndarray:
+def _solve_refined(M: np.ndarray, rhs: np.ndarray, m32: np.ndarray | None = None,
+                   scale_m: float | None = None) -> np.ndarray:
     """Solve M X = rhs to float64 accuracy: float32 LU plus iterative refinement (float64 LU if that stalls).
 
     The float32 copy ``m32`` of the C-ordered M (overwritten) is factorised as Mᵀ (its Fortran-ordered
-    view, no copy) and solved transposed; residuals are computed with the float64 M.
+    view, no copy) and solved transposed; residuals are computed with the float64 M.  ``scale_m`` is the
+    largest |entry| of M (found here if not given).
     """
     a32 = M.astype(np.float32) if m32 is None else m32
     getrf, getrs = get_lapack_funcs(("getrf", "getrs"), (a32,))
     lu, piv, info = getrf(a32.T, overwrite_a=True)
-    scale_m = max(float(M.max()), -float(M.min()))
+    if scale_m is None:
+        scale_m = max(float(M.max()), -float(M.min()))
     if info == 0:
         def solve32(r):
             out, _ = getrs(lu, piv, r.astype(np.float32), trans=1)  # (Mᵀ)ᵀ out = r
@@ -471,13 +604,49 @@ def _solve_refined(M: np.ndarray, rhs: np.ndarray, m32: np.ndarray | None = None
         x = solve32(rhs)
         scale = scale_m * np.abs(x).max() + np.abs(rhs).max()
         for _ in range(10):
-            r = rhs - M @ x
+            r = _residual(M, x, rhs)
             if np.abs(r).max() <= 1e-13 * scale:
                 return x
             x += solve32(r)
-        if np.all(np.isfinite(x)) and np.abs(rhs - M @ x).max() <= 1e-11 * scale:
+        if np.all(np.isfinite(x)) and np.abs(_residual(M, x, rhs)).max() <= 1e-11 * scale:
             return x
     return scipy.linalg.lu_solve(scipy.linalg.lu_factor(M, check_finite=False), rhs, check_finite=False)
+
+
+def _residual(M: np.ndarray, x: np.ndarray, rhs: np.ndarray) -> np.ndarray:
+    """rhs − M x in float64; for two right-hand sides by a compiled pass over the rows of M (one read of M for
+    both, blocks of rows on threads of their own: every row is summed on its own, so the result does not depend
+    on the number of threads)."""
+    if rhs.ndim != 2 or rhs.shape[1] != 2 or not M.flags.c_contiguous:
+        return rhs - M @ x
+    n = M.shape[0]
+    out = np.empty_like(rhs)
+    x0, x1 = np.ascontiguousarray(x[:, 0]), np.ascontiguousarray(x[:, 1])
+    workers = max(1, min(_cores(), n // 1024))
+    bounds = np.linspace(0, n, workers + 1).astype(np.int64)
+    if workers == 1:
+        _residual_rows(0, n, M, x0, x1, rhs, out)
+        return out
+    with ThreadPoolExecutor(workers) as pool:
+        for job in [pool.submit(_residual_rows, int(i0), int(i1), M, x0, x1, rhs, out)
+                    for i0, i1 in zip(bounds[:-1], bounds[1:])]:
+            job.result()
+    return out
+
+
+@njit(cache=True, nogil=True, fastmath={"reassoc", "contract"})
+def _residual_rows(i0, i1, M, x0, x1, rhs, out):
+    """Rows i0 .. i1 − 1 of :func:`_residual` (each row's dot products summed in vector lanes; infinities and
+    NaNs propagate as without reassociation)."""
+    for i in range(i0, i1):
+        row = M[i]
+        a = 0.0
+        b = 0.0
+        for j in range(row.shape[0]):
+            a += row[j] * x0[j]
+            b += row[j] * x1[j]
+        out[i, 0] = rhs[i, 0] - a
+        out[i, 1] = rhs[i, 1] - b
 
 
 def _as_points(x) -> tuple[np.ndarray, bool]:
@@ -663,8 +832,8 @@ class PointWorldMap:
         M[:, n:] = 0.0
         M[n:, :n] = 0.0
         col = np.where(real, np.cumsum(real) - 1, -1)  # the real links are the panels, in order
-        _assemble(np.ascontiguousarray(mid[:, 0]), np.ascontiguousarray(mid[:, 1]), np.ascontiguousarray(v[:, 0]),
-                  np.ascontiguousarray(v[:, 1]), tx, ty, L_link, col, M, M32)
+        big = _assemble(np.ascontiguousarray(mid[:, 0]), np.ascontiguousarray(mid[:, 1]),
+                        np.ascontiguousarray(v[:, 0]), np.ascontiguousarray(v[:, 1]), tx, ty, L_link, col, M, M32)
         hole_of_panel = rid - 1
         on_hole = hole_of_panel >= 0
         M[np.flatnonzero(on_hole), n + hole_of_panel[on_hole]] = -1.0  # u = b_ℓ on hole ℓ
@@ -678,7 +847,7 @@ class PointWorldMap:
         rhs[np.flatnonzero(ext), 1] = np.sin(theta)
         M32[:, n:] = M[:, n:]
         M32[n:, :n] = M[n:, :n]
-        sol = _solve_refined(M, rhs, M32)
+        sol = _solve_refined(M, rhs, M32, max(big, 1.0, float(L.max())))  # |W|, the ±1 of b_ℓ and c, the L_j
         sigma = sol[:n]
         holes = sol[n : n + n_holes]
         const = sol[n + n_holes]
@@ -921,11 +1090,23 @@ class PointWorldMap:
 
 
 def _hole_gaps(poly: Polygon) -> np.ndarray:
-    """Per hole: its distance to the nearest other boundary ring (the outer boundary or another hole)."""
-    rings = np.array([poly.exterior, *poly.interiors], dtype=object)
-    d = shapely.distance(rings[1:, None], rings[None, :])
-    d[np.arange(len(rings) - 1), np.arange(1, len(rings))] = np.inf
-    return d.min(axis=1) if len(rings) > 1 else np.zeros(0)
+    """Per hole: its distance to the nearest other boundary ring (the outer boundary or another hole).
+
+    The distance to the outer boundary is that to its nearest edge (a search tree over the edges); only the
+    holes within that distance are then measured, so each gap is the minimum of the same pairwise distances
+    as over all rings."""
+    holes = np.array(list(poly.interiors), dtype=object)
+    if len(holes) == 0:
+        return np.zeros(0)
+    ext = np.asarray(poly.exterior.coords)
+    edges = shapely.STRtree(shapely.linestrings(np.stack([ext[:-1], ext[1:]], axis=1)))
+    (hole, _), dist = edges.query_nearest(holes, return_distance=True)
+    gap = np.full(len(holes), np.inf)
+    np.minimum.at(gap, hole, dist)
+    i, j = shapely.STRtree(holes).query(holes, predicate="dwithin", distance=gap)
+    other = i != j
+    np.minimum.at(gap, i[other], shapely.distance(holes[i[other]], holes[j[other]]))
+    return gap
 
 
 def _separation(b: np.ndarray) -> np.ndarray:

@@ -28,6 +28,8 @@ of every first and of every second derivative is at most ε_H, ε_J and ε_Hess 
 from __future__ import annotations
 
 import math
+import os
+from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 from numba import njit
@@ -38,9 +40,16 @@ LEAF_PANELS = 16
 ORDER = 30
 #: Largest R / ρ at which a cluster's expansion is used.
 MAX_RATIO = 0.6
+#: Points per thread at least before a batch evaluation is split over threads.
+BATCH_PER_THREAD = 512
 _TWO_PI = 2.0 * math.pi
 _TINY = 1e-300
 _STACK = 256
+
+
+def _cores() -> int:
+    """Cores this process may run on."""
+    return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
 
 
 class PanelTree:
@@ -61,18 +70,31 @@ class PanelTree:
         return out
 
     def evaluate_many(self, pts: np.ndarray, derivs: bool = True) -> np.ndarray:
-        """``evaluate`` at every row of ``pts`` (n, 2); shape (n, 10)."""
+        """``evaluate`` at every row of ``pts`` (n, 2); shape (n, 10).  Large batches are split over threads
+        (the compiled loop releases the GIL); every point is evaluated on its own, so the result does not
+        depend on the number of threads."""
+        pts = np.ascontiguousarray(pts, dtype=float)
         out = np.empty((len(pts), 10))
-        tree_points(np.ascontiguousarray(pts, dtype=float), derivs, self.vert, self.links, self.nodef, self.nodei,
-                    self.coef, self.params, out)
+        args = (derivs, self.vert, self.links, self.nodef, self.nodei, self.coef, self.params)
+        workers = min(_cores(), len(pts) // BATCH_PER_THREAD)
+        if workers <= 1:
+            tree_points(pts, *args, out)
+            return out
+        bounds = np.linspace(0, len(pts), workers + 1).astype(np.int64)
+        with ThreadPoolExecutor(workers) as pool:
+            jobs = [pool.submit(tree_points, pts[i0:i1], *args, out[i0:i1]) for i0, i1 in zip(bounds[:-1], bounds[1:])]
+            for job in jobs:
+                job.result()
         return out
 
 
+@njit(cache=True, nogil=True)
 def _leaves(ring_of_link, real, lengths, max_panels, max_length):
-    """(first, end) link ranges: runs of consecutive real links of one ring, at most ``max_panels`` links and
-    (beyond their first link) at most ``max_length`` long each."""
-    out = []
-    n = len(real)
+    """(first, end) link ranges, shape (k, 2): runs of consecutive real links of one ring, at most
+    ``max_panels`` links and (beyond their first link) at most ``max_length`` long each."""
+    n = real.shape[0]
+    out = np.empty((n, 2), dtype=np.int64)
+    count = 0
     j = 0
     while j < n:
         if not real[j]:
@@ -84,17 +106,111 @@ def _leaves(ring_of_link, real, lengths, max_panels, max_length):
                and total + lengths[k] <= max_length):
             total += lengths[k]
             k += 1
-        out.append((j, k))
+        out[count, 0] = j
+        out[count, 1] = k
+        count += 1
         j = k
-    return out
+    return out[:count]
 
 
 @njit(cache=True, nogil=True)
-def _node_moments(vert, links, leaf_lo, leaf_hi, first, last, centre, coef, radius):
-    """Radius R and coefficients (m_p / p, m_p, (p + 1) m_p) of every node: the links of leaves first..last − 1
-    (in tree order) about the node's centre."""
+def _leaf_boxes(vert, leaves):
+    """Bounding boxes (lower, upper corners) of the vertices of every leaf."""
+    m = leaves.shape[0]
+    lo = np.empty((m, 2))
+    hi = np.empty((m, 2))
+    for q in range(m):
+        for c in range(2):
+            a = vert[leaves[q, 0], c]
+            b = a
+            for i in range(leaves[q, 0] + 1, leaves[q, 1] + 1):
+                a = min(a, vert[i, c])
+                b = max(b, vert[i, c])
+            lo[q, c] = a
+            hi[q, c] = b
+    return lo, hi
+
+
+@njit(cache=True, nogil=True)
+def _stable_sort_by(order, lo, hi, key, axis, work):
+    """Sort order[lo:hi] by key[order, axis] keeping the order of equal keys (bottom-up merge sort; ``work``
+    is scratch of the length of ``order``)."""
+    width = 1
+    in_work = False
+    while width < hi - lo:
+        src, dst = (work, order) if in_work else (order, work)
+        for a in range(lo, hi, 2 * width):
+            b = min(a + width, hi)
+            c = min(a + 2 * width, hi)
+            i, j = a, b
+            for t in range(a, c):
+                if i < b and (j >= c or key[src[i], axis] <= key[src[j], axis]):
+                    dst[t] = src[i]
+                    i += 1
+                else:
+                    dst[t] = src[j]
+                    j += 1
+        in_work = not in_work
+        width *= 2
+    if in_work:
+        for t in range(lo, hi):
+            order[t] = work[t]
+
+
+@njit(cache=True, nogil=True)
+def _split_nodes(box_lo, box_hi, mid):
+    """The binary tree over the leaves in pre-order: a node's leaves are split into two halves (the first
+    ⌊m/2⌋ and the rest) of their order by the centre coordinate along the longer side of their bounding box
+    (stable).  Returns (children (−1 at a leaf), centres of the bounding boxes, first and one-past-last
+    position of every node's leaves in the returned leaf order, leaf order)."""
+    m = box_lo.shape[0]
+    nn = 2 * m - 1
+    children = np.empty((nn, 2), dtype=np.int64)
+    centre = np.empty((nn, 2))
+    first = np.empty(nn, dtype=np.int64)
+    last = np.empty(nn, dtype=np.int64)
+    order = np.arange(m)
+    work = np.empty(m, dtype=np.int64)
+    stack = np.empty((nn, 3), dtype=np.int64)  # node, first, one-past-last
+    stack[0, 0], stack[0, 1], stack[0, 2] = 0, 0, m
+    top = 1
+    while top > 0:
+        top -= 1
+        k, lo, hi = stack[top, 0], stack[top, 1], stack[top, 2]
+        first[k] = lo
+        last[k] = hi
+        q = order[lo]
+        lx, ly = box_lo[q, 0], box_lo[q, 1]
+        ux, uy = box_hi[q, 0], box_hi[q, 1]
+        for t in range(lo + 1, hi):
+            q = order[t]
+            lx = min(lx, box_lo[q, 0])
+            ly = min(ly, box_lo[q, 1])
+            ux = max(ux, box_hi[q, 0])
+            uy = max(uy, box_hi[q, 1])
+        centre[k, 0] = 0.5 * (lx + ux)
+        centre[k, 1] = 0.5 * (ly + uy)
+        children[k, 0] = -1
+        children[k, 1] = -1
+        if hi - lo == 1:
+            continue
+        axis = 1 if uy - ly > ux - lx else 0
+        _stable_sort_by(order, lo, hi, mid, axis, work)
+        half = (hi - lo) // 2
+        left, right = k + 1, k + 2 * half  # a subtree of h leaves has 2h − 1 nodes
+        children[k, 0], children[k, 1] = left, right
+        stack[top, 0], stack[top, 1], stack[top, 2] = right, lo + half, hi
+        stack[top + 1, 0], stack[top + 1, 1], stack[top + 1, 2] = left, lo, lo + half
+        top += 2
+    return children, centre, first, last, order
+
+
+@njit(cache=True, nogil=True)
+def _node_moments(nodes, vert, links, leaf_lo, leaf_hi, first, last, centre, coef, radius):
+    """Radius R and coefficients (m_p / p, m_p, (p + 1) m_p) of the ``nodes``: the links of leaves
+    first..last − 1 (in tree order) about the node's centre."""
     order = coef.shape[3] - 1
-    for k in range(first.shape[0]):
+    for k in nodes:
         cx = centre[k, 0]
         cy = centre[k, 1]
         R2 = 0.0
@@ -138,41 +254,24 @@ def build_tree(vx, vy, tx, ty, L, sigma_links, ring_of_link, real, const, *, eps
     vert = np.ascontiguousarray(np.column_stack([vx, vy]), dtype=float)
     links = np.ascontiguousarray(np.column_stack([tx, ty, L, sigma_links[:, 0], sigma_links[:, 1]]), dtype=float)
     span = float(np.hypot(*(vert.max(axis=0) - vert.min(axis=0))))
-    leaves = np.array(_leaves(np.asarray(ring_of_link), np.asarray(real, dtype=bool), np.asarray(L, dtype=float),
-                              leaf_panels, span / 32.0), dtype=np.int64).reshape(-1, 2)
-    box_lo = np.array([vert[lo : hi + 1].min(axis=0) for lo, hi in leaves]).reshape(-1, 2)
-    box_hi = np.array([vert[lo : hi + 1].max(axis=0) for lo, hi in leaves]).reshape(-1, 2)
-    mid = 0.5 * (box_lo + box_hi)
-    children, centres, first, last, tree_order = [], [], [], [], []
-
-    def make(ids):
-        k = len(children)
-        children.append((-1, -1))
-        last.append(-1)
-        lo_xy, hi_xy = box_lo[ids].min(axis=0), box_hi[ids].max(axis=0)
-        centres.append(0.5 * (lo_xy + hi_xy))
-        first.append(len(tree_order))
-        if len(ids) == 1:
-            tree_order.append(int(ids[0]))
-        else:
-            axis = int(np.argmax(hi_xy - lo_xy))
-            ids = ids[np.argsort(mid[ids, axis], kind="stable")]
-            half = len(ids) // 2
-            children[k] = (make(ids[:half]), make(ids[half:]))
-        last[k] = len(tree_order)
-        return k
-
-    make(np.arange(len(leaves)))
+    leaves = _leaves(np.ascontiguousarray(ring_of_link, dtype=np.int64), np.ascontiguousarray(real, dtype=np.bool_),
+                     np.ascontiguousarray(L, dtype=float), leaf_panels, span / 32.0)
+    box_lo, box_hi = _leaf_boxes(vert, leaves)
+    children, centre, first_a, last_a, tree_order = _split_nodes(box_lo, box_hi, 0.5 * (box_lo + box_hi))
     nn = len(children)
-    tree_order = np.array(tree_order, dtype=np.int64)
-    first_a = np.array(first, dtype=np.int64)
-    last_a = np.array(last, dtype=np.int64)
-    centre = np.array(centres, dtype=float).reshape(nn, 2)
     coef = np.zeros((nn, 2, 3, order + 1), dtype=complex)
     radius = np.empty(nn)
-    _node_moments(vert, links, leaves[tree_order, 0], leaves[tree_order, 1], first_a, last_a, centre, coef, radius)
+    args = (vert, links, leaves[tree_order, 0], leaves[tree_order, 1], first_a, last_a, centre, coef, radius)
+    nodes = np.arange(nn)
+    workers = min(_cores(), max(1, nn // 64))
+    if workers == 1:
+        _node_moments(nodes, *args)
+    else:  # every node on its own (the same bits on any number of threads); every other node balances the work
+        with ThreadPoolExecutor(workers) as pool:
+            for job in [pool.submit(_node_moments, nodes[w::workers], *args) for w in range(workers)]:
+                job.result()
     nodei = np.full((nn, 4), -1, dtype=np.int64)
-    nodei[:, :2] = np.array(children, dtype=np.int64)
+    nodei[:, :2] = children
     leaf = nodei[:, 0] < 0
     nodei[leaf, 2:] = leaves[tree_order[first_a[leaf]]]
     nodef = np.column_stack([centre, radius])

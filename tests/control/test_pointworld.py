@@ -14,7 +14,19 @@ from shapely.geometry import MultiPolygon, Point, Polygon, box
 from shapely.ops import unary_union
 
 from mrodrake.bench.control import office_like_free_space
-from mrodrake.control.pointworld import PointWorldMap, _assemble, _chain, _kernel, _local_width, _separation
+from mrodrake.control import pointworld
+from mrodrake.control.pointworld import (
+    PointWorldMap,
+    _assemble,
+    _ball_min,
+    _chain,
+    _hole_gaps,
+    _kernel,
+    _local_width,
+    _residual,
+    _separation,
+    _vertex_logs_angles,
+)
 from mrodrake.errors import UserError
 
 ROBOT_RADIUS = 0.4
@@ -136,7 +148,8 @@ def test_kernel_hessian_matches_finite_differences():
 def test_compiled_assembly_matches_the_closed_form(rooms):
     """The compiled matrix assembly writes the closed-form W of every panel at every collocation point (links
     between rings skipped), in float64 and float32; both evaluate the same formula in double precision, so
-    they agree to rounding of terms of size |u_a ln r_a| (≤ ~10² here): within 1e-12 × max |W|."""
+    they agree to rounding of terms of size |u_a ln r_a| (≤ ~10² here): within 1e-12 × max |W|; it returns
+    max |W| of what it wrote (the scale of the solve's residual test)."""
     _, pw = rooms
     a, b, rid = pw.panel_start, pw.panel_end, pw.panel_ring
     v, L, tx, ty, real = _chain(a, b, rid)
@@ -145,10 +158,47 @@ def test_compiled_assembly_matches_the_closed_form(rooms):
     W = _kernel(mid[:, 0], mid[:, 1], v[:, 0], v[:, 1], tx, ty, L, derivs=False)[0][:, real]
     M, M32 = np.full((n, n), np.nan), np.full((n, n), np.nan, dtype=np.float32)
     col = np.where(real, np.cumsum(real) - 1, -1)
-    _assemble(mid[:, 0].copy(), mid[:, 1].copy(), v[:, 0].copy(), v[:, 1].copy(), tx, ty, L, col, M, M32)
+    big = _assemble(mid[:, 0].copy(), mid[:, 1].copy(), v[:, 0].copy(), v[:, 1].copy(), tx, ty, L, col, M, M32)
+    assert big == np.abs(M).max()
     scale = np.abs(W).max()
     np.testing.assert_allclose(M, W, rtol=0.0, atol=1e-12 * scale)
     np.testing.assert_allclose(M32, W.astype(np.float32), rtol=2.0 ** -23, atol=2.0 ** -23 * scale)
+
+
+@pytest.mark.parametrize("scale", [1e-6, 1e-2, 1.0, 1e2, 1e4])
+def test_vectorised_logs_and_angles_match_the_c_library(scale):
+    """The assembly's branch-free ln r² and atan2 stay within 4 units in the last place of numpy's (libm's),
+    at every scale and in every octant, on the axes and at the vertex itself (r² floored at 1e-300)."""
+    rng = np.random.default_rng(7)
+    n = 2000
+    vx, vy = rng.uniform(-scale, scale, n), rng.uniform(-scale, scale, n)
+    pts = rng.uniform(-scale, scale, (40, 2))
+    vx[:5] = pts[0, 0] + np.array([0.3, -0.3, 0.0, 0.0, 0.0]) * scale  # on both axes through the first point
+    vy[:5] = pts[0, 1] + np.array([0.0, 0.0, 0.3, -0.3, 0.0]) * scale  # and at it
+    lr, ang, r2 = np.empty(n), np.empty(n), np.empty(n)
+    mant, expo = np.empty(n, dtype=np.int64), np.empty(n, dtype=np.int64)
+    for x, y in pts:
+        _vertex_logs_angles(x, y, vx, vy, lr, ang, r2, mant, expo)
+        dx, dy = x - vx, y - vy
+        lr0 = np.log(np.maximum(dx * dx + dy * dy, 1e-300))
+        ang0 = np.arctan2(dy, dx)
+        assert np.all(np.abs(lr - lr0) <= 4 * np.spacing(np.abs(lr0)))
+        assert np.all(np.abs(ang - ang0) <= 4 * np.spacing(np.abs(ang0)))
+
+
+def test_refinement_residual_matches_numpy_and_ignores_the_thread_count(monkeypatch):
+    """The compiled residual of the refinement agrees with rhs − M x to rounding of the dot products
+    (n ε |M| |x|) and gives the same bits on one thread as on several."""
+    rng = np.random.default_rng(5)
+    n = 2500
+    M = rng.standard_normal((n, n))
+    x = rng.standard_normal((n, 2))
+    rhs = M @ x + 1e-9 * rng.standard_normal((n, 2))
+    monkeypatch.setattr(pointworld, "_cores", lambda: 2)
+    split = _residual(M, x, rhs)
+    np.testing.assert_allclose(split, rhs - M @ x, rtol=0.0, atol=n * 2.0**-52 * np.abs(M).max() * np.abs(x).max())
+    monkeypatch.setattr(pointworld, "_cores", lambda: 1)
+    np.testing.assert_array_equal(_residual(M, x, rhs), split)
 
 
 def _build_in_child(queue):
@@ -406,6 +456,53 @@ def test_local_width_sees_a_wall_behind_many_own_samples():
     fresh = _local_width(xy2, nrm2, rid2, s2, perims, radii2)
     update = _local_width(xy2, nrm2, rid2, s2, perims, radii2, (np.arange(len(xy)), width, radii))
     np.testing.assert_array_equal(update, fresh)
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_ball_query_on_a_grid_matches_all_pairs(seed):
+    """The compiled ball query finds exactly what testing every pair finds: per sample i, the least
+    2ρ = |q − p|² / ((q − p)·n_i) over the samples q in front of i, facing it, not its neighbours along the
+    boundary and inside its tangent ball of diameter width[i] (balls from 1e-3 to 50 x the sample spacing)."""
+    rng = np.random.default_rng(seed)
+    n = 600
+    xy = rng.uniform(0.0, 10.0, (n, 2))
+    ang = rng.uniform(0.0, 2.0 * np.pi, n)
+    nrm = np.column_stack([np.cos(ang), np.sin(ang)])
+    ring_id = rng.integers(0, 3, n)
+    s = rng.uniform(0.0, 30.0, n)
+    perims = np.array([30.0, 31.0, 32.0])
+    width = 10.0 ** rng.uniform(-3.0, 1.0, n)
+    geom = (xy[:, 0].copy(), xy[:, 1].copy(), nrm[:, 0].copy(), nrm[:, 1].copy(), s, ring_id, perims)
+    rows, cols = np.arange(0, n, 2), np.arange(n)
+    half = 0.5 * width[rows]
+    centre = xy[rows] + half[:, None] * nrm[rows]
+    inside = np.sum((xy[None, :, :] - centre[:, None, :]) ** 2, axis=-1) <= half[:, None] ** 2
+    d = xy[None, :, :] - xy[rows, None, :]
+    dn = np.einsum("ijk,ik->ij", d, nrm[rows])
+    facing = np.einsum("ijk,jk->ij", d, nrm) < 0.0
+    dd = np.sum(d * d, axis=-1)
+    ds = np.abs(s[None, :] - s[rows, None])
+    ds = np.minimum(ds, perims[ring_id[rows]][:, None] - ds)
+    apart = (ring_id[None, :] != ring_id[rows, None]) | (ds * ds > 2.5**2 * dd)
+    ok = inside & (dn > 0.0) & facing & apart
+    expected = np.where(ok, dd / np.where(ok, dn, 1.0), np.inf).min(axis=1)
+    assert np.isfinite(expected).sum() > len(rows) // 4
+    np.testing.assert_array_equal(_ball_min(rows, width, cols, geom), expected)
+    part = cols[::3]
+    expected_part = np.where(ok[:, part], (dd / np.where(ok, dn, 1.0))[:, part], np.inf).min(axis=1)
+    np.testing.assert_array_equal(_ball_min(rows, width, part, geom), expected_part)
+
+
+def test_hole_gaps_are_the_least_distance_to_every_other_ring(office):
+    """The tree-pruned gaps equal the minimum over all pairwise ring distances, for holes far from the walls,
+    near each other and in a corridor."""
+    free, _ = office
+    extra = [Point(30.0, 30.0).buffer(2.0), Point(35.0, 30.0).buffer(2.0), box(60.0, 2.0, 62.0, 4.0)]
+    for poly in (free, free.difference(unary_union(extra))):
+        rings = np.array([poly.exterior, *poly.interiors], dtype=object)
+        d = shapely.distance(rings[1:, None], rings[None, :])
+        d[np.arange(len(rings) - 1), np.arange(1, len(rings))] = np.inf
+        np.testing.assert_array_equal(_hole_gaps(poly), d.min(axis=1))
 
 
 def test_case_study_map_collapses_holes_in_one_solve():

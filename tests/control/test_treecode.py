@@ -13,6 +13,7 @@ import pytest
 import shapely
 
 from mrodrake.bench.control import office_like_free_space
+from mrodrake.control import treecode
 from mrodrake.control.pointworld import TREE_TOLERANCES, PointWorldMap, _chain
 from mrodrake.control.treecode import build_tree
 
@@ -78,3 +79,52 @@ def test_single_point_batch_and_flat_agree_exactly(office):
         flat = pw.evaluate_flat(float(p[0]), float(p[1]))
         assert flat[:2] == H[k].tolist() and flat[2:6] == J[k].ravel().tolist()
         assert flat[6:8] == Hs[k, 0, 0].tolist() and flat[8:10] == Hs[k, 1, 0].tolist()
+
+
+def test_batches_split_over_threads_agree_exactly(office, monkeypatch):
+    """Every point is evaluated on its own, so a batch gives the same bits on one thread as on several."""
+    free, pw = office
+    pts = sample_points(pw, free, np.random.default_rng(4), 600, 600)
+    assert len(pts) >= 2 * treecode.BATCH_PER_THREAD
+    monkeypatch.setattr(treecode, "_cores", lambda: 2)
+    split = pw.tree.evaluate_many(pts)
+    monkeypatch.setattr(treecode, "_cores", lambda: 1)
+    assert np.array_equal(split, pw.tree.evaluate_many(pts))
+
+
+def test_tree_clusters_split_the_leaves_in_pre_order(office):
+    """Node k's children are k + 1 and k + 2h (h: leaves of the first child), the leaves are runs of one ring's
+    real links that cover every real link once, and every node's disk holds the vertices of its links."""
+    _, pw = office
+    tree = pw.tree
+    nodei, nodef = tree.nodei, tree.nodef
+
+    def leaves_under(k):
+        if nodei[k, 0] < 0:
+            return [k]
+        left, right = nodei[k, :2]
+        h = len(leaves_under(left))
+        assert left == k + 1 and right == k + 2 * h
+        return leaves_under(left) + leaves_under(right)
+
+    leaves = leaves_under(0)
+    assert len(nodei) == 2 * len(leaves) - 1
+    runs = sorted((int(nodei[k, 2]), int(nodei[k, 3])) for k in leaves)
+    covered = np.concatenate([np.arange(a, b) for a, b in runs])
+    assert np.array_equal(covered, np.flatnonzero(pw._link_real))
+    assert all(len(set(pw._link_ring[a:b])) == 1 for a, b in runs)
+    for k in range(len(nodei)):
+        links = np.concatenate([np.arange(nodei[q, 2], nodei[q, 3]) for q in leaves_under(k)])
+        verts = tree.vert[np.union1d(links, links + 1)]
+        assert np.hypot(*(verts - nodef[k, :2]).T).max() <= nodef[k, 2] * (1 + 1e-12)
+
+
+def test_tree_moments_do_not_depend_on_the_thread_count(office, monkeypatch):
+    _, pw = office
+    v, L, tx, ty, real, rings = _chain(pw.panel_start, pw.panel_end, pw.panel_ring, with_rings=True)
+    trees = []
+    for cores in (1, 2):
+        monkeypatch.setattr(treecode, "_cores", lambda c=cores: c)
+        trees.append(build_tree(v[:, 0], v[:, 1], tx, ty, L, pw._sig_links, rings, real, pw._const))
+    for field in ("nodef", "nodei", "coef", "params"):
+        assert np.array_equal(getattr(trees[0], field), getattr(trees[1], field))
