@@ -28,11 +28,15 @@ without its approach ring) or, in a region it shares with another motion, the di
 :data:`SPOT_LEG` around its start (goal), in which its exit (settle) legs then run.  Its point-world map is
 built on F ∩ corridor, a static free space: Theorem 1 applies to it alone, its bodies stay inside the cell
 (the map's margin covers the map's numerical error, as for walls), and cells are disjoint, so no two
-concurrent bodies meet.  Motions that get no corridor wait until
-a job ends.  Releases, grasps and room moves stay inside their region, which no other running job touches,
-and every motion's F keeps r + margin off the regions other than its own two.  Two motions that share a
-region run in it inside their own cells: the point-world law on F ∩ corridor, the local legs in their spot
-disks, which the cells hold.
+concurrent bodies meet.  Motions that get no corridor ask again when a job ends or after a while; then the
+corridors of the running motions on the point-world law may be drawn again together with theirs
+(:func:`redraw_corridors`), each running motion's route starting where it is, so the floor it has left behind
+(a door it has passed) goes to the others: its law restarts there on F ∩ its new corridor, a static free space
+that holds its bodies, so Theorem 1 applies again from there.  A motion settling in its destination on local
+legs holds only the disk of their rim.  Releases, grasps and room moves stay inside their region, which no
+other running job touches, and every motion's F keeps r + margin off the regions other than its own two.  Two
+motions that share a region run in it inside their own cells: the point-world law on F ∩ corridor, the local
+legs in their spot disks, which the cells hold.
 """
 
 from __future__ import annotations
@@ -62,6 +66,11 @@ GAP = 0.05
 #: Radius (m) of the disk of centre positions around its start (its goal) in which a navigation or transport
 #: runs its exit (settle) legs when its corridor holds that disk but not its source (destination) region.
 SPOT_LEG = 1.0
+#: Width (m) on each side of a motion's route within which a corridor drawn again must leave the motion's free
+#: space whole (:func:`squeezes`).
+ROUTE_SIDE = 2.0
+#: Area (m²) of the free space near its route a corridor may cut off (polygon rounding).
+SQUEEZE_AREA = 0.01
 #: Most bodies whose crossings one task group may interleave (bounds the crossing lattice, 3^bodies nodes).
 GROUP_BODIES = 8
 
@@ -365,28 +374,28 @@ def _cells(sites: dict[int, np.ndarray], available: Polygon) -> dict[int, Polygo
 
 
 def assign_corridors(requests: Sequence[Request], floor: Polygon, busy: Polygon | None,
-                     margin: float) -> dict[int, Corridor]:
+                     margin: float, side: float | None = None) -> dict[int, Corridor]:
     """Corridors for the motions of ``requests`` that can start together now (module docstring); ``busy``:
     the bodies' corridors of the motions running (None: none).  One motion and nothing running: the whole
     floor, unconfined.  Otherwise the floor not held by running motions is split into the Voronoi cells of
     the requests' routes and spot disks (:func:`_sites`); a motion gets its cell shrunk by its covering
     radius, the margin and :data:`GAP` (its centre positions) if that connects its start to its goal and holds
     its regions' approach disks, its regions, or the disks of radius :data:`SPOT_LEG` around its start and
-    goal.  Motions without one are left out and the cells drawn again for the others; they wait."""
+    goal; with ``side``, only if it also leaves the centre positions it could have on that floor whole within
+    ``side`` of its route (:func:`squeezes`).  Motions without one are left out and the cells drawn again for
+    the others; they wait."""
     alone = {requests[0].uid: Corridor(None, floor)} if busy is None else {}
     if busy is None and len(requests) == 1:
         return alone
     available = floor if busy is None else shapely.make_valid(floor.difference(busy))
-    members = list(requests)
+    rooms, routes = {}, {}
+    for rq in requests:
+        rooms[rq.uid] = rq.free.intersection(available.buffer(-(rq.radius + margin + GAP)))
+        path = _route(rq, rooms[rq.uid])
+        if path is not None:
+            routes[rq.uid] = path
+    members = [rq for rq in requests if rq.uid in routes]
     while members:
-        routes = {}
-        for rq in members:
-            path = _route(rq, rq.free.intersection(available.buffer(-(rq.radius + margin + GAP))))
-            if path is not None:
-                routes[rq.uid] = path
-        members = [rq for rq in members if rq.uid in routes]
-        if not members:
-            return alone
         if busy is None and len(members) == 1:
             return {members[0].uid: Corridor(None, floor)}
         cells = _cells({rq.uid: _sites(rq, routes[rq.uid]) for rq in members}, available)
@@ -394,6 +403,8 @@ def assign_corridors(requests: Sequence[Request], floor: Polygon, busy: Polygon 
         for rq in members:
             try:
                 got = _corridor_in(rq, cells[rq.uid], margin)
+                if got is not None and side is not None and squeezes(rq, got, rooms[rq.uid], routes[rq.uid], side):
+                    got = None
             except GEOSException:  # a cell too degenerate to shrink: no corridor in it
                 got = None
             if got is None:
@@ -405,6 +416,29 @@ def assign_corridors(requests: Sequence[Request], floor: Polygon, busy: Polygon 
         # the motions later in the run give way: drop the last one and split the floor again
         members = members[:-1] if len(members) > 1 else []
     return alone
+
+
+def redraw_corridors(moving: Sequence[Request], requests: Sequence[Request], floor: Polygon, busy: Polygon | None,
+                     margin: float) -> dict[int, Corridor] | None:
+    """Corridors for the running motions ``moving``, each asking from where it is now, and the waiting
+    ``requests``, drawn together (:func:`assign_corridors`, the running motions first, so the waiting ones give
+    way) on the floor not held by ``busy`` (the running motions that keep their corridors; None: none).  A
+    running motion's route starts where it is, so the floor behind it goes to the others.  Every corridor
+    leaves its motion's surroundings whole within :data:`ROUTE_SIDE` of its route (:func:`squeezes`).  None
+    unless every motion of ``moving`` gets a confined corridor."""
+    got = assign_corridors([*moving, *requests], floor, busy, margin, side=ROUTE_SIDE)
+    if any(rq.uid not in got or got[rq.uid].confine is None for rq in moving):
+        return None
+    return got
+
+
+def squeezes(rq: Request, corridor: Corridor, room: Polygon, path: np.ndarray, side: float = ROUTE_SIDE) -> bool:
+    """Whether ``corridor`` cuts ``room`` (the centre positions the motion of ``rq`` could have with no other
+    motion asking) within ``side`` of its route ``path`` through ``room``.  The map of a free space flattens
+    along a narrow channel, where the law crawls or runs on windows (:mod:`mrodrake.control.windows`): a motion
+    on such a corridor may take several times as long."""
+    near = _component(room.intersection(_line(path).buffer(side)), Point(rq.start))
+    return near is None or near.difference(corridor.confine).area > SQUEEZE_AREA
 
 
 def _corridor_in(rq: Request, cell: Polygon, margin: float) -> Corridor | None:

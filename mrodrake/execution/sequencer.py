@@ -62,6 +62,7 @@ from mrodrake.execution.schedule import (
     Request,
     assign_corridors,
     dependency_graph,
+    redraw_corridors,
     task_order,
 )
 from mrodrake.geometry import disk, polygon, workspace_free_space
@@ -90,6 +91,9 @@ SETTLE_DEPTH = 0.05
 MAP_CACHE = 6
 #: Navigations and transports ahead whose maps the map worker builds while the current one runs.
 PREFETCH_AHEAD = 2
+#: Period (s) at which motions waiting for a corridor ask again while no job ends (concurrent execution): the
+#: running motions have moved on, and corridors drawn again from where they are may leave room for them.
+REGRANT_PERIOD = 10.0
 #: Distance (m) to its planned spot within which a parked entity is a hole of a motion's map as its planned
 #: spot with the radius grown by this much (:meth:`Sequencer._map_disks`): navigations and transports end
 #: within GOAL_TOL of theirs, dockings and back-offs within DOCK_TOL.
@@ -188,6 +192,7 @@ class ExecState:
     next_job: int = 0       # concurrent execution: jobs before this uid have started
     word_step: int = 0      # concurrent execution: the executed steps before it are closed on the monitor
     corridors: int = 0      # concurrent execution: bumped whenever a job ends (corridors may have come free)
+    regrant: float = 0.0    # concurrent execution: time of the last bump while no job ended (REGRANT_PERIOD)
 
     def __deepcopy__(self, memo):
         return self
@@ -217,7 +222,7 @@ class _Edit:
         self.status, self.message = self.st.status, self.st.message
         self.version, self.episode = self.st.version, self.st.episode
         self.running, self.done, self.next_job = list(self.st.running), set(self.st.done), self.st.next_job
-        self.word_step, self.corridors = self.st.word_step, self.st.corridors
+        self.word_step, self.corridors, self.regrant = self.st.word_step, self.st.corridors, self.st.regrant
         self.grants: dict[int, Corridor] = {}
 
     def unchanged(self) -> bool:
@@ -227,7 +232,8 @@ class _Edit:
         same = (self.step_idx == st.step_idx and self.queue is st.queue and self.active is st.active
                 and self.status is st.status and self.message == st.message and self.version == st.version
                 and self.episode == st.episode and self.next_job == st.next_job and self.word_step == st.word_step
-                and self.corridors == st.corridors and len(self.events) == len(st.events)
+                and self.corridors == st.corridors and self.regrant == st.regrant
+                and len(self.events) == len(st.events)
                 and len(self.grasps) == len(st.grasps) and len(self.primitives) == len(st.primitives)
                 and self.done == st.done and len(self.running) == len(st.running)
                 and all(a is b for a, b in zip(self.running, st.running))
@@ -246,7 +252,7 @@ class _Edit:
                          self.engaged, self.docked, self.grasp_open, self.monitor, tuple(self.events),
                          tuple(self.grasps), tuple(self.primitives), self.status, self.message, self.version,
                          self.episode, tuple(self.running), frozenset(self.done), self.next_job, self.word_step,
-                         self.corridors)
+                         self.corridors, self.regrant)
 
 
 class Sequencer:
@@ -402,7 +408,7 @@ class Sequencer:
         first closes the executed steps before its own on the monitor); repeat until nothing changes."""
         jobs = self.jobs
         while ed.status is Status.RUNNING:
-            self._grant(ed, X)
+            self._grant(ed, t, X)
             changed, k = False, 0
             while k < len(ed.running):
                 ed.active = ed.running[k]
@@ -462,11 +468,16 @@ class Sequencer:
                 raise _Failure(f"{self._op_text(a.op)} (step {a.step.index}): {', '.join(off)} not in "
                                f"{self.scenario.region_names[act.dst]} at its end")
 
-    def _grant(self, ed: _Edit, X: np.ndarray) -> None:
+    def _grant(self, ed: _Edit, t: float, X: np.ndarray) -> None:
         """Corridors (:func:`~mrodrake.execution.schedule.assign_corridors`) for every navigation or transport
-        in execution that is ready to move and has not asked since a job last ended, together."""
+        in execution that is ready to move and has not asked since a job last ended (or, waiting, for
+        :data:`REGRANT_PERIOD`), together; where some get none, the corridors of the running motions drawn
+        again from where they are (:meth:`_redraw`) if that lets more start."""
         if any(a.op.kind is OpKind.TRANSPORT and a.phase is Phase.START for a in ed.running):
             return  # a team engaging now asks at the next tick: everyone asks then, together
+        if t - ed.regrant >= REGRANT_PERIOD and any(a.tried == ed.corridors for a in ed.running):
+            ed.corridors += 1
+            ed.regrant = t
         requests, failed = [], set()
         for a in ed.running:
             if a.motion is not None or a.uid in ed.grants or a.tried == ed.corridors:
@@ -485,7 +496,7 @@ class Sequencer:
                 requests.append(self._request(a.uid, op, X[entity, :2], radius, self._disks(X, {entity, *team})))
             except UserError:  # waits while another job can clear its way
                 failed.add(a.uid)
-        held = [a.motion.corridor.body for a in ed.running if a.motion is not None and a.motion.corridor is not None]
+        held = [self._held(a.motion) for a in ed.running if a.motion is not None and a.motion.corridor is not None]
         busy = shapely.union_all(held) if held else None
         granted = set(ed.grants)
         if requests:
@@ -494,11 +505,69 @@ class Sequencer:
             except GEOSException:  # degenerate cells: the first asker alone when nothing moves, else all wait
                 if busy is None:
                     ed.grants[requests[0].uid] = Corridor(None, self._floor)
+            if not granted and any(rq.uid not in ed.grants for rq in requests):
+                self._redraw(ed, X, requests)
         if failed and set(ed.grants) == granted and not any(b.motion is not None for b in ed.running):
             ed.grants[min(failed)] = Corridor(None, self._floor)  # nothing else moves: it starts and reports why
         asked = {rq.uid for rq in requests} | failed
         ed.running = [replace(a, tried=ed.corridors) if a.uid in asked and a.uid not in ed.grants else a
                       for a in ed.running]
+
+    def _held(self, m: Motion):
+        """The floor the bodies of running motion ``m`` may still cover: its corridor's, or once it settles in
+        its destination on local legs, which keep its centre inside their rim, that rim grown by its radius
+        (a part of the corridor's body)."""
+        if m.kind in (OpKind.NAVIGATE, OpKind.TRANSPORT) and m.legs is not None and not m.exiting:
+            spot = m.corridor.spots[1]
+            c = np.asarray(m.goal, dtype=float) if spot else self.centers[m.dst]
+            R = SPOT_LEG if spot else float(self.region_radii[m.dst] + m.extra - m.radius)
+            return disk(c, R + m.radius)
+        return m.corridor.body
+
+    @staticmethod
+    def _redrawable(m: Motion | None) -> bool:
+        """A navigation or transport on the point-world law (not on exit, departure or settle legs)."""
+        return (m is not None and m.kind in (OpKind.NAVIGATE, OpKind.TRANSPORT) and m.corridor is not None
+                and m.legs is None and bool(m.world))
+
+    def _redraw(self, ed: _Edit, X: np.ndarray, requests: list[Request]) -> None:
+        """Corridors of the running motions on the point-world law drawn again from where they are, together
+        with the waiting ``requests`` (:func:`~mrodrake.execution.schedule.redraw_corridors`), if that grants
+        more of the requests than :func:`~mrodrake.execution.schedule.assign_corridors` did: each running
+        motion's law restarts from where it is on F ∩ its new corridor (:meth:`_point_world`, same episode: the
+        estimates carry over, as for windows), a static free space again, so Theorem 1 applies to it from there.
+        The new corridors are disjoint from each other and from those kept, and each holds its motion's bodies
+        where they are, so no two bodies meet at the switch either.  Nothing changes if any motion's law cannot
+        restart."""
+        movers = [a for a in ed.running if self._redrawable(a.motion)]
+        if not movers:
+            return
+        kept = [self._held(a.motion) for a in ed.running
+                if a.motion is not None and a.motion.corridor is not None and not self._redrawable(a.motion)]
+        try:
+            moving = [self._request(a.uid, a.op, X[a.motion.entity, :2], a.motion.radius,
+                                    self._disks(X, {a.motion.entity, *a.motion.team})) for a in movers]
+            got = redraw_corridors(moving, requests, self._floor, shapely.union_all(kept) if kept else None,
+                                   self.margin)
+        except (UserError, GEOSException):
+            return
+        waiting = {rq.uid for rq in requests}
+        if got is None or len(waiting & set(got)) <= len(waiting & set(ed.grants)):
+            return
+        tasks, moved = dict(ed.tasks), {}
+        for a in movers:
+            try:
+                m = self._point_world(ed, X, replace(a.motion, corridor=got[a.uid], departed=True))
+            except _Failure:
+                m = None
+            if m is None or (m.waypoint is not None and a.motion.waypoint is None):
+                ed.tasks = tasks
+                return
+            moved[a.uid] = m
+        ed.running = [replace(a, motion=moved[a.uid]) if a.uid in moved else a for a in ed.running]
+        for uid in waiting:
+            ed.grants.pop(uid, None)
+        ed.grants.update({uid: c for uid, c in got.items() if uid in waiting})
 
     def _request(self, uid: int, op: PlacedOp, start: np.ndarray, radius: float, others: list[Disk]) -> Request:
         """The corridor request of the navigation or transport ``op`` (job ``uid``) from ``start`` with the

@@ -1,8 +1,9 @@
 """Concurrent execution: the job dependency graph, corridors, and the executed words it can produce.
 
 * two robots crossing a floor on separate lanes move at the same time, each inside its corridor, far from
-  the other; two whose routes cross wait for each other (no overlap in time); two leaving one region in
-  opposite directions move at the same time;
+  the other; two leaving one region in opposite directions move at the same time; of two whose routes cross,
+  or pass one door, the second starts once the first has left the crossing (the door) behind, before the
+  first arrives (the running motion's corridor drawn again from where it is);
 * two jobs the graph leaves unordered share no body, and share a region only as two motions whose spots there
   keep the layout spacing (so every spot of the placement is free whichever runs first);
 * a safety clause that one interleaving of two concurrent crossings would violate keeps the two in the plan's
@@ -14,6 +15,7 @@
 from __future__ import annotations
 
 import itertools
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -30,10 +32,11 @@ from mrodrake.execution.schedule import (
     assign_corridors,
     dependency_graph,
     motion_spots,
+    redraw_corridors,
     task_order,
 )
 from mrodrake.execution.sequencer import Motion
-from mrodrake.geometry import CONTROL_MARGIN
+from mrodrake.geometry import CONTROL_MARGIN, disk
 from mrodrake.logic.lasso import evaluate_lasso
 from mrodrake.planning.generate import generate_scenario_data
 from mrodrake.planning.placement import OpKind
@@ -63,6 +66,14 @@ def lanes(formula: str):
 def open_floor(formula: str):
     """An empty 40 m x 40 m floor: p1 (NW), p2 (SE), p3 (NE), p4 (SW); p1 -> p2 and p3 -> p4 cross."""
     return _floor("open", [[0, 0], [40, 0], [40, 40], [0, 40]], [], [[5, 35], [35, 5], [35, 35], [5, 5]], formula)
+
+
+def door(formula: str):
+    """A 60 m x 40 m floor split by a 2 m wall at x = 30 with one 4 m door (y in [17, 21]): p1 (NW) and p3 (SW)
+    west of it, p2 (NE) and p4 (SE) east of it; p1 -> p2 and p3 -> p4 both pass the door."""
+    boundary = [[0, 0], [29, 0], [29, 17], [31, 17], [31, 0], [60, 0], [60, 40], [31, 40], [31, 21], [29, 21],
+                [29, 40], [0, 40]]
+    return _floor("door", boundary, [], [[8, 32], [52, 34], [8, 8], [52, 6]], formula)
 
 
 def hub(formula: str):
@@ -164,11 +175,71 @@ def test_local_legs_of_a_motion_on_a_spot_corridor_stay_in_its_spot_disk():
     assert np.allclose(c, seq.centers[m.dst]) and np.isclose(R, seq.region_radii[m.dst] + 2.0 - 0.75)
 
 
-def test_two_robots_whose_routes_cross_wait_for_each_other():
+def _at(log, entity: str, t: float) -> np.ndarray:
+    own = log.trajectory[log.trajectory.entity == entity]
+    return own[["x", "y"]].to_numpy()[np.argmin(np.abs(own["t"].to_numpy() - t))]
+
+
+def test_two_robots_whose_routes_cross_pass_the_crossing_one_after_the_other():
     log = _mission(open_floor("F (r1_p2 & r2_p4)"), "concurrent")
-    (a0, a1), (b0, b1) = _intervals(log).values()
-    assert min(a1, b1) <= max(a0, b0)  # one after the other
-    assert _gap(log, "r1", "r2") > 0.0
+    iv = _intervals(log)
+    (a0, a1), (b0, _b1) = sorted(iv.values())
+    first = "r1" if iv["navigate r1 p1->p2"][0] == a0 else "r2"
+    assert a0 < b0 < a1  # the second waits, not for the whole motion of the first, ...
+    x = _at(log, first, b0)  # ... until the first has left the crossing (20, 20) behind, toward the south
+    assert x[1] < 20.0 and np.hypot(*(x - 20.0)) > 2 * (0.75 + CONTROL_MARGIN)
+    assert _gap(log, "r1", "r2") > 2 * CONTROL_MARGIN
+
+
+def test_a_robot_crosses_a_door_once_the_robot_ahead_has_left_it_behind():
+    log = _mission(door("F (r1_p2 & r2_p4)"), "concurrent")
+    (a0, a1), (b0, b1) = sorted(_intervals(log).values())
+    assert a0 < b0 < a1  # the second starts before the first has arrived, once the door is behind the first
+    first = "r1" if _intervals(log)["navigate r1 p1->p2"][0] == a0 else "r2"
+    assert _at(log, first, b0)[0] > 31.0 + 0.75  # the first is past the door when the second starts
+    assert _gap(log, "r1", "r2") > 2 * CONTROL_MARGIN
+    seq = _mission(door("F (r1_p2 & r2_p4)"), "sequential")
+    assert log.sim_seconds < seq.sim_seconds
+
+
+def test_corridors_drawn_again_give_a_door_to_a_waiting_robot_once_the_running_one_has_passed_it():
+    sc = door("F (r1_p2 & r2_p4)")
+    plan = plan_scenario(sc, iterations=300, seed=0, layout_seed=0)
+    seq = Mission(sc, plan, execution="concurrent").sequencer
+    X = np.asarray(plan.placement.initial, dtype=float)
+    first, second = sorted((j for j in seq.jobs if j.moves_between_regions), key=lambda j: j.op.entity)
+
+    def ask(job, at, other_at):
+        return seq._request(job.uid, job.op, np.asarray(at, dtype=float), 0.75, [Disk("other", tuple(other_at), 0.75)])
+
+    for x, passed in (((24.0, 21.0), False), ((33.5, 20.5), False), ((41.0, 26.0), True)):
+        moving = ask(first, x, X[1])
+        waiting = ask(second, X[1], x)
+        got = redraw_corridors([moving], [waiting], seq._floor, None, seq.margin)
+        assert (got is not None and second.uid in got) is passed
+        if passed:
+            a, b = got[first.uid], got[second.uid]
+            assert a.confine.contains(shapely.Point(x))
+            assert not a.body.intersects(b.body)
+            assert a.confine.contains(shapely.Point(first.op.goal)) and b.confine.contains(shapely.Point(X[1]))
+
+
+def test_a_motion_settling_on_local_legs_holds_only_their_rim():
+    sc = hub("F (r1_p2 & r2_p3)")
+    plan = plan_scenario(sc, iterations=300, seed=0, layout_seed=0)
+    seq = Mission(sc, plan, execution="concurrent").sequencer
+    job = next(j for j in seq.jobs if j.moves_between_regions)
+    dst = job.op.action.dst
+    body = shapely.box(0, 0, 70, 30)
+    m = Motion(OpKind.NAVIGATE, job.op.entity, (), "c", "p", job.op.action.src, dst, 0.75, (35.0, 15.0),
+               tuple(job.op.goal), 0.0, 100.0, 1, None, corridor=Corridor(shapely.box(1, 1, 69, 29), body), world=(1,))
+    assert seq._held(m) is body  # on the point-world law: the whole corridor
+    settling = replace(m, legs=(tuple(job.op.goal),), extra=2.0)
+    rim = seq._held(settling)
+    assert rim.area < 0.1 * body.area
+    assert np.isclose(rim.hausdorff_distance(disk(seq.centers[dst], seq.region_radii[dst] + 2.0)), 0.0)
+    spot = replace(settling, corridor=Corridor(shapely.box(1, 1, 69, 29), body, (True, False), (False, True)))
+    assert np.isclose(seq._held(spot).hausdorff_distance(disk(job.op.goal, SPOT_LEG + 0.75)), 0.0)
 
 
 def test_a_safety_clause_one_interleaving_would_break_keeps_the_plan_order():
