@@ -605,7 +605,7 @@ def _solve_refined(M: np.ndarray, rhs: np.ndarray, m32: np.ndarray | None = None
         scale = scale_m * np.abs(x).max() + np.abs(rhs).max()
         for _ in range(10):
             r = _residual(M, x, rhs)
-            if np.abs(r).max() <= 1e-13 * scale:
+            if math.isfinite(scale) and np.abs(r).max() <= 1e-13 * scale:
                 return x
             x += solve32(r)
         if np.all(np.isfinite(x)) and np.abs(_residual(M, x, rhs)).max() <= 1e-11 * scale:

@@ -313,7 +313,7 @@ def _component(geom, point: Point) -> Polygon | None:
 @dataclass(frozen=True)
 class Request:
     """A navigation or transport that may start now: its job, its free space F (centre positions, with
-    every entity not in motion as a hole), start, goal, covering radius and the disks of its source and
+    every other entity as a hole), start, goal, covering radius and the disks of its source and
     destination regions, each with and without its approach ring (body extent), and the disks of radius
     :data:`SPOT_LEG` around its start and its goal grown by its radius (None: the regions only)."""
 
