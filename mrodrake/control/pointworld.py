@@ -26,7 +26,6 @@ from __future__ import annotations
 import math
 import threading
 import time
-from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from functools import cached_property
 
@@ -39,7 +38,7 @@ from scipy.spatial import cKDTree
 from shapely.geometry import MultiPolygon, Polygon
 from shapely.geometry.polygon import orient
 
-from mrodrake.control.treecode import PanelTree, _cores, build_tree
+from mrodrake.control.treecode import PanelTree, build_tree, in_row_blocks
 from mrodrake.errors import UserError
 
 _SHARP_ANGLE = math.radians(30.0)  # vertices turning more than this are kept as panel ends
@@ -391,14 +390,7 @@ def _assemble(mx, my, vx, vy, tx, ty, L, col, M, M32) -> float:
     starts = np.flatnonzero(real[1:] & ~real[:-1])
     ends = np.flatnonzero(real[:-1] & ~real[1:])
     runs = np.column_stack([starts, ends, col[starts]]).astype(np.int64)  # first link, end, first column
-    workers = max(1, min(_cores(), n // 256))
-    if workers == 1:
-        return _assemble_rows(0, n, mx, my, vx, vy, tx, ty, L, runs, M, M32)
-    bounds = np.linspace(0, n, workers + 1).astype(np.int64)
-    with ThreadPoolExecutor(workers) as pool:
-        jobs = [pool.submit(_assemble_rows, int(i0), int(i1), mx, my, vx, vy, tx, ty, L, runs, M, M32)
-                for i0, i1 in zip(bounds[:-1], bounds[1:])]
-        return max(job.result() for job in jobs)
+    return max(in_row_blocks(_assemble_rows, n, 256, mx, my, vx, vy, tx, ty, L, runs, M, M32))
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -622,15 +614,7 @@ def _residual(M: np.ndarray, x: np.ndarray, rhs: np.ndarray) -> np.ndarray:
     n = M.shape[0]
     out = np.empty_like(rhs)
     x0, x1 = np.ascontiguousarray(x[:, 0]), np.ascontiguousarray(x[:, 1])
-    workers = max(1, min(_cores(), n // 1024))
-    bounds = np.linspace(0, n, workers + 1).astype(np.int64)
-    if workers == 1:
-        _residual_rows(0, n, M, x0, x1, rhs, out)
-        return out
-    with ThreadPoolExecutor(workers) as pool:
-        for job in [pool.submit(_residual_rows, int(i0), int(i1), M, x0, x1, rhs, out)
-                    for i0, i1 in zip(bounds[:-1], bounds[1:])]:
-            job.result()
+    in_row_blocks(_residual_rows, n, 1024, M, x0, x1, rhs, out)
     return out
 
 

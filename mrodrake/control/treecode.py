@@ -47,9 +47,23 @@ _TINY = 1e-300
 _STACK = 256
 
 
-def _cores() -> int:
+def usable_cores() -> int:
     """Cores this process may run on."""
     return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+
+
+def in_row_blocks(kernel, n: int, rows_per_thread: int, *args) -> list:
+    """``kernel(i0, i1, *args)`` on contiguous blocks [i0, i1) of the rows 0 .. n − 1, a thread each (at most
+    one per core and at least ``rows_per_thread`` rows per block; in this thread when that leaves one block);
+    the kernels' results in block order.  For compiled kernels that release the GIL and compute every row on
+    its own, so the result does not depend on the number of threads."""
+    workers = max(1, min(usable_cores(), n // rows_per_thread))
+    if workers == 1:
+        return [kernel(0, n, *args)]
+    bounds = np.linspace(0, n, workers + 1).astype(np.int64)
+    with ThreadPoolExecutor(workers) as pool:
+        jobs = [pool.submit(kernel, int(i0), int(i1), *args) for i0, i1 in zip(bounds[:-1], bounds[1:])]
+        return [job.result() for job in jobs]
 
 
 class PanelTree:
@@ -76,15 +90,7 @@ class PanelTree:
         pts = np.ascontiguousarray(pts, dtype=float)
         out = np.empty((len(pts), 10))
         args = (derivs, self.vert, self.links, self.nodef, self.nodei, self.coef, self.params)
-        workers = min(_cores(), len(pts) // BATCH_PER_THREAD)
-        if workers <= 1:
-            tree_points(pts, *args, out)
-            return out
-        bounds = np.linspace(0, len(pts), workers + 1).astype(np.int64)
-        with ThreadPoolExecutor(workers) as pool:
-            jobs = [pool.submit(tree_points, pts[i0:i1], *args, out[i0:i1]) for i0, i1 in zip(bounds[:-1], bounds[1:])]
-            for job in jobs:
-                job.result()
+        in_row_blocks(lambda i0, i1: tree_points(pts[i0:i1], *args, out[i0:i1]), len(pts), BATCH_PER_THREAD)
         return out
 
 
@@ -263,7 +269,7 @@ def build_tree(vx, vy, tx, ty, L, sigma_links, ring_of_link, real, const, *, eps
     radius = np.empty(nn)
     args = (vert, links, leaves[tree_order, 0], leaves[tree_order, 1], first_a, last_a, centre, coef, radius)
     nodes = np.arange(nn)
-    workers = min(_cores(), max(1, nn // 64))
+    workers = min(usable_cores(), max(1, nn // 64))
     if workers == 1:
         _node_moments(nodes, *args)
     else:  # every node on its own (the same bits on any number of threads); every other node balances the work

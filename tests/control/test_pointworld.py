@@ -14,7 +14,7 @@ from shapely.geometry import MultiPolygon, Point, Polygon, box
 from shapely.ops import unary_union
 
 from mrodrake.bench.control import office_like_free_space
-from mrodrake.control import pointworld
+from mrodrake.control import treecode
 from mrodrake.control.pointworld import (
     PointWorldMap,
     _assemble,
@@ -194,10 +194,10 @@ def test_refinement_residual_matches_numpy_and_ignores_the_thread_count(monkeypa
     M = rng.standard_normal((n, n))
     x = rng.standard_normal((n, 2))
     rhs = M @ x + 1e-9 * rng.standard_normal((n, 2))
-    monkeypatch.setattr(pointworld, "_cores", lambda: 2)
+    monkeypatch.setattr(treecode, "usable_cores", lambda: 2)
     split = _residual(M, x, rhs)
     np.testing.assert_allclose(split, rhs - M @ x, rtol=0.0, atol=n * 2.0**-52 * np.abs(M).max() * np.abs(x).max())
-    monkeypatch.setattr(pointworld, "_cores", lambda: 1)
+    monkeypatch.setattr(treecode, "usable_cores", lambda: 1)
     np.testing.assert_array_equal(_residual(M, x, rhs), split)
 
 

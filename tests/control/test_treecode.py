@@ -86,9 +86,9 @@ def test_batches_split_over_threads_agree_exactly(office, monkeypatch):
     free, pw = office
     pts = sample_points(pw, free, np.random.default_rng(4), 600, 600)
     assert len(pts) >= 2 * treecode.BATCH_PER_THREAD
-    monkeypatch.setattr(treecode, "_cores", lambda: 2)
+    monkeypatch.setattr(treecode, "usable_cores", lambda: 2)
     split = pw.tree.evaluate_many(pts)
-    monkeypatch.setattr(treecode, "_cores", lambda: 1)
+    monkeypatch.setattr(treecode, "usable_cores", lambda: 1)
     assert np.array_equal(split, pw.tree.evaluate_many(pts))
 
 
@@ -124,7 +124,7 @@ def test_tree_moments_do_not_depend_on_the_thread_count(office, monkeypatch):
     v, L, tx, ty, real, rings = _chain(pw.panel_start, pw.panel_end, pw.panel_ring, with_rings=True)
     trees = []
     for cores in (1, 2):
-        monkeypatch.setattr(treecode, "_cores", lambda c=cores: c)
+        monkeypatch.setattr(treecode, "usable_cores", lambda c=cores: c)
         trees.append(build_tree(v[:, 0], v[:, 1], tx, ty, L, pw._sig_links, rings, real, pw._const))
     for field in ("nodef", "nodei", "coef", "params"):
         assert np.array_equal(getattr(trees[0], field), getattr(trees[1], field))
