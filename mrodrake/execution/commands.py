@@ -40,7 +40,9 @@ class TaskCommand:
 
 @dataclass(frozen=True)
 class PrimitiveRecord:
-    """What the figures need of one executed motion: entity, team, kind, regions, times, F and the task."""
+    """What the figures need of one executed motion: entity, team, kind, regions, times, F and the task;
+    ``spans``: every free space its point-world law ran on, as (time it started on it, free space), in order
+    (windows, corridors drawn again), of which ``free`` is the last."""
 
     kind: str
     entity: str
@@ -57,3 +59,4 @@ class PrimitiveRecord:
     offsets: np.ndarray
     t_start: float
     t_end: float
+    spans: tuple = ()

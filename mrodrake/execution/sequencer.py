@@ -149,6 +149,7 @@ class Motion:
     world: tuple = ()
     waypoint: tuple | None = None
     corridor: Corridor | None = None
+    spans: tuple = ()
 
 
 @dataclass(frozen=True)
@@ -224,6 +225,7 @@ class _Edit:
         self.running, self.done, self.next_job = list(self.st.running), set(self.st.done), self.st.next_job
         self.word_step, self.corridors, self.regrant = self.st.word_step, self.st.corridors, self.st.regrant
         self.grants: dict[int, Corridor] = {}
+        self.t = 0.0
 
     def unchanged(self) -> bool:
         """True if this tick changed nothing: every field is the one it started from (mappings entry by entry,
@@ -337,6 +339,7 @@ class Sequencer:
         if st.status is not Status.RUNNING:
             return st
         ed = _Edit(st)
+        ed.t = t
         try:
             if not np.all(np.isfinite(X)):
                 raise _Failure(f"non-finite entity state at t={t:.2f}")
@@ -895,7 +898,7 @@ class Sequencer:
                 return windowed
             raise _Failure(f"{m.kind.value} of {name}: {str(exc).splitlines()[0]}") from None
         ed.tasks[m.controller] = TaskCommand(task, m.episode)
-        return replace(m, task=task, free=free, waypoint=None)
+        return replace(m, task=task, free=free, waypoint=None, spans=(*m.spans, (ed.t, free)))
 
     def _window(self, ed: _Edit, x: np.ndarray, m: Motion, free, around_goal: bool = False) -> Motion | None:
         """The law on the map of the window around ``x`` toward its waypoint, or (``around_goal``) on the map of
@@ -914,7 +917,8 @@ class Sequencer:
         except (UserError, ValueError):
             return None
         ed.tasks[m.controller] = TaskCommand(task, m.episode)
-        return replace(m, task=task, free=window, waypoint=tuple(map(float, window.goal)))
+        return replace(m, task=task, free=window, waypoint=tuple(map(float, window.goal)),
+                       spans=(*m.spans, (ed.t, window)))
 
     def _next_window(self, ed: _Edit, X: np.ndarray, m: Motion) -> Motion:
         """Near the waypoint of its window a motion moves on to the next window (never back to the map of the
@@ -1063,7 +1067,7 @@ class Sequencer:
             ed.primitives.append(PrimitiveRecord(
                 m.kind.value, self.entities[m.entity], tuple(self.robots[i] for i in m.team), m.src, m.dst, m.radius,
                 np.asarray(m.start), np.asarray(m.goal), m.others, m.free, m.task, m.controller,
-                np.asarray(m.offsets).reshape(-1, 2), m.t_start, t))
+                np.asarray(m.offsets).reshape(-1, 2), m.t_start, t, m.spans))
             return True
         if t - m.t_start > m.limit:
             raise _Failure(f"{m.kind.value} of {self.entities[m.entity]}: time limit {m.limit:.0f} s exceeded")

@@ -1,7 +1,8 @@
 """Concurrent execution: the job dependency graph, corridors, and the executed words it can produce.
 
-* two robots crossing a floor on separate lanes move at the same time, each inside its corridor, far from
-  the other; two leaving one region in opposite directions move at the same time; of two whose routes cross,
+* two robots crossing a floor on separate lanes, or side by side along one channel, move at the same time,
+  each inside the corridors its law ran on (piecewise in time, corridors drawn again included), far from the
+  other; two leaving one region in opposite directions move at the same time; of two whose routes cross,
   or pass one door, the second starts once the first has left the crossing (the door) behind, before the
   first arrives (the running motion's corridor drawn again from where it is);
 * two jobs the graph leaves unordered share no body, and share a region only as two motions whose spots there
@@ -48,10 +49,10 @@ from tests.helpers.jobs import generated_jobs
 from tests.helpers.tasks import region_atoms
 
 
-def _floor(name, boundary, obstacles, regions, formula):
+def _floor(name, boundary, obstacles, regions, formula, radius=3.0):
     return scenario_from_dict({
         "name": name, "workspace": {"boundary": boundary, "obstacles": obstacles},
-        "regions": [{"name": f"p{k + 1}", "center": c, "radius": 3.0} for k, c in enumerate(regions)],
+        "regions": [{"name": f"p{k + 1}", "center": c, "radius": radius} for k, c in enumerate(regions)],
         "robots": [{"name": "r1", "mass": 1.0, "radius": 0.75, "power": 2, "initial_region": "p1"},
                    {"name": "r2", "mass": 1.2, "radius": 0.75, "power": 2, "initial_region": "p3"}],
         "objects": [], "task": {"formula": formula}})
@@ -88,11 +89,40 @@ def hub(formula: str):
         "objects": [], "task": {"formula": formula}})
 
 
+def channel(formula: str):
+    """A 70 m x 9 m empty channel: p1 (NW) and p3 (SW) at its west end, p2 (NE) and p4 (SE) at its east end,
+    radius 2 m; p1 -> p2 and p3 -> p4 run side by side, 4.5 m apart."""
+    return _floor("channel", [[0, 0], [70, 0], [70, 9], [0, 9]], [], [[5, 6.75], [65, 6.75], [5, 2.25], [65, 2.25]],
+                  formula, radius=2.0)
+
+
 def _mission(sc, execution):
     plan = plan_scenario(sc, iterations=300, seed=0, layout_seed=0)
     log = Mission(sc, plan, suffix_cycles=1, seed=0, execution=execution).run()
     assert log.ok, log.message
     return log
+
+
+def _spans(rec):
+    """(t0, t1, free) for every free space the motion of ``rec`` ran on; the first from its start."""
+    times = [rec.t_start, *(t for t, _ in rec.spans[1:]), rec.t_end]
+    return [(times[k], times[k + 1], free) for k, (_, free) in enumerate(rec.spans)]
+
+
+def _assert_inside_disjoint_corridors(log):
+    """Every motion's centre stays within the control margin of the free space its law ran on at the time,
+    and the free spaces of two motions running at the same time, grown by radius and margin, are disjoint."""
+    tr = log.trajectory
+    spans = [(rec.entity, *span) for rec in log.primitives for span in _spans(rec)]
+    assert spans
+    for entity, t0, t1, free in spans:
+        seg = tr[(tr.entity == entity) & (tr.t >= t0) & (tr.t <= t1)][["x", "y"]].to_numpy()
+        d = shapely.distance(free.polygon, shapely.points(seg))
+        assert np.max(d) <= CONTROL_MARGIN, (entity, t0, float(np.max(d)))
+    for (ea, a0, a1, fa), (eb, b0, b1, fb) in itertools.combinations(spans, 2):
+        if ea != eb and max(a0, b0) < min(a1, b1):
+            grown = [f.polygon.buffer(0.75 + CONTROL_MARGIN) for f in (fa, fb)]
+            assert not grown[0].intersects(grown[1]), (ea, eb, a0, b0)
 
 
 def _intervals(log):
@@ -114,13 +144,7 @@ def test_two_robots_on_separate_lanes_move_at_the_same_time_inside_their_corrido
     assert max(a0, b0) < min(a1, b1)  # the two motions overlap in time
     # each stays in its corridor: its centre within the margin of the confined free space its map was built
     # on (the corridor construction keeps the two grown corridors disjoint)
-    tr = log.trajectory
-    for rec in log.primitives:
-        seg = tr[(tr.entity == rec.entity) & (tr.t >= rec.t_start) & (tr.t <= rec.t_end)][["x", "y"]].to_numpy()
-        d = shapely.distance(rec.free.polygon, shapely.points(seg))
-        assert np.max(d) <= CONTROL_MARGIN, (rec.entity, float(np.max(d)))
-    free = [rec.free.polygon.buffer(0.75 + CONTROL_MARGIN) for rec in log.primitives]
-    assert not free[0].intersects(free[1])
+    _assert_inside_disjoint_corridors(log)
     assert _gap(log, "r1", "r2") > 2 * CONTROL_MARGIN
     seq = _mission(lanes("F (r1_p2 & r2_p4)"), "sequential")
     assert log.sim_seconds < seq.sim_seconds
@@ -131,13 +155,20 @@ def test_two_robots_leaving_one_region_in_opposite_directions_move_at_the_same_t
     iv = _intervals(log)
     (a0, a1), (b0, b1) = iv["navigate r1 p1->p2"], iv["navigate r2 p1->p3"]
     assert max(a0, b0) < min(a1, b1)
-    tr = log.trajectory
-    for rec in log.primitives:
-        seg = tr[(tr.entity == rec.entity) & (tr.t >= rec.t_start) & (tr.t <= rec.t_end)][["x", "y"]].to_numpy()
-        assert np.max(shapely.distance(rec.free.polygon, shapely.points(seg))) <= CONTROL_MARGIN
-    free = [rec.free.polygon.buffer(0.75 + CONTROL_MARGIN) for rec in log.primitives]
-    assert not free[0].intersects(free[1])
+    _assert_inside_disjoint_corridors(log)
     assert _gap(log, "r1", "r2") > 0.0
+
+
+def test_two_robots_side_by_side_along_one_channel_move_at_the_same_time():
+    log = _mission(channel("F (r1_p2 & r2_p4)"), "concurrent")
+    iv = _intervals(log)
+    (a0, a1), (b0, b1) = iv["navigate r1 p1->p2"], iv["navigate r2 p3->p4"]
+    assert max(a0, b0) < min(a1, b1)
+    _assert_inside_disjoint_corridors(log)
+    assert _gap(log, "r1", "r2") > 2 * CONTROL_MARGIN
+    # each corridor is half the 9 m channel, but it keeps its robot's route straight: no crawl
+    seq = _mission(channel("F (r1_p2 & r2_p4)"), "sequential")
+    assert log.sim_seconds < 0.75 * seq.sim_seconds
 
 
 def test_two_motions_leaving_one_region_get_disjoint_corridors_that_hold_their_spot_disks():
@@ -188,6 +219,7 @@ def test_two_robots_whose_routes_cross_pass_the_crossing_one_after_the_other():
     assert a0 < b0 < a1  # the second waits, not for the whole motion of the first, ...
     x = _at(log, first, b0)  # ... until the first has left the crossing (20, 20) behind, toward the south
     assert x[1] < 20.0 and np.hypot(*(x - 20.0)) > 2 * (0.75 + CONTROL_MARGIN)
+    _assert_inside_disjoint_corridors(log)
     assert _gap(log, "r1", "r2") > 2 * CONTROL_MARGIN
 
 
@@ -197,6 +229,9 @@ def test_a_robot_crosses_a_door_once_the_robot_ahead_has_left_it_behind():
     assert a0 < b0 < a1  # the second starts before the first has arrived, once the door is behind the first
     first = "r1" if _intervals(log)["navigate r1 p1->p2"][0] == a0 else "r2"
     assert _at(log, first, b0)[0] > 31.0 + 0.75  # the first is past the door when the second starts
+    ahead = next(rec for rec in log.primitives if rec.entity == first)
+    assert len(ahead.spans) >= 2 and a0 < ahead.spans[1][0] <= b0  # its corridor was drawn again to let it
+    _assert_inside_disjoint_corridors(log)
     assert _gap(log, "r1", "r2") > 2 * CONTROL_MARGIN
     seq = _mission(door("F (r1_p2 & r2_p4)"), "sequential")
     assert log.sim_seconds < seq.sim_seconds
