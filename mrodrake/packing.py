@@ -79,8 +79,9 @@ def _check_radii(radii: Sequence[float], what: str) -> np.ndarray:
     return arr
 
 
-def _gaps_ok(R: float, c: np.ndarray, r: np.ndarray, fc: np.ndarray, fr: np.ndarray, g: float) -> bool:
-    """All gaps involving the disks (c, r) are >= g: pairwise, to the fixed disks (fc, fr), to the rim."""
+def _gaps_ok(R, c: np.ndarray, r: np.ndarray, fc: np.ndarray, fr: np.ndarray, g: float) -> bool:
+    """All gaps involving the disks (c, r) are >= g: pairwise, to the fixed disks (fc, fr), to the rim (R: one
+    radius, or one per disk: the rim that disk must keep inside)."""
     if not np.all(np.isfinite(c)):
         return False
     if np.any(R - np.hypot(c[:, 0], c[:, 1]) - r < g):
@@ -153,7 +154,7 @@ def _necessary(rs: np.ndarray) -> bool:
     return not np.any(k > bound)
 
 
-def _candidates(C: np.ndarray, Rr: np.ndarray, r: float, rho: float) -> np.ndarray:
+def _candidates(C: np.ndarray, Rr: np.ndarray, r: float, rho) -> np.ndarray:
     """Positions for a disk of radius r tangent to two of {container of radius rho, placed disks},
     plus rim points and the origin (used when nothing is nearby)."""
     ang = 2.0 * math.pi * np.arange(_RIM_ANGLES) / _RIM_ANGLES
@@ -179,9 +180,10 @@ def _candidates(C: np.ndarray, Rr: np.ndarray, r: float, rho: float) -> np.ndarr
     return np.vstack([base + perp, base - perp, extra])
 
 
-def _greedy(rads: np.ndarray, fc: np.ndarray, fr: np.ndarray, rho: float, rule: str) -> tuple[np.ndarray, int]:
-    """Place disks of radii ``rads`` one by one (in the given order) next to fixed disks (fc, fr) in the
-    container of radius rho.  The first disk of an empty container touches the rim at angle 0; each
+def _greedy(rads: np.ndarray, fc: np.ndarray, fr: np.ndarray, rhos: np.ndarray, rule: str) -> tuple[np.ndarray, int]:
+    """Place disks of radii ``rads`` one by one (in the given order) next to fixed disks (fc, fr), disk i in
+    the container of radius ``rhos[i]`` (one container; smaller for a disk whose centre is bound closer to the
+    centre).  The first disk of an empty container touches the rim at angle 0; each
     later one goes to the valid tangency candidate with the smallest third-smallest gap ("hole": snug
     in a hole, ties to the rim) or with the largest |c| ("rim"), ties broken by polar angle.
     Returns (centres, number placed); rows after that count are undefined."""
@@ -189,7 +191,7 @@ def _greedy(rads: np.ndarray, fc: np.ndarray, fr: np.ndarray, rho: float, rule: 
     C = np.zeros((m0 + n, 2))
     Rr = np.zeros(m0 + n)
     C[:m0], Rr[:m0] = fc, fr
-    for k, r in enumerate(rads):
+    for k, (r, rho) in enumerate(zip(rads, rhos)):
         m = m0 + k
         if r > rho:
             return C[m0:], k
@@ -215,8 +217,9 @@ def _greedy(rads: np.ndarray, fc: np.ndarray, fr: np.ndarray, rho: float, rule: 
     return C[m0:], n
 
 
-def _energy(x: np.ndarray, r: np.ndarray, rho: float, fc: np.ndarray, fr: np.ndarray) -> tuple[float, np.ndarray]:
-    """Penalty energy sum(overlap^2) + sum(protrusion^2) and its gradient (fixed disks are constants)."""
+def _energy(x: np.ndarray, r: np.ndarray, rho, fc: np.ndarray, fr: np.ndarray) -> tuple[float, np.ndarray]:
+    """Penalty energy sum(overlap^2) + sum(protrusion^2) and its gradient (fixed disks are constants; rho:
+    the container's radius, or one per disk)."""
     c = x.reshape(-1, 2)
     D = c[:, None, :] - c[None, :, :]
     d = np.sqrt(np.einsum("ijk,ijk->ij", D, D))
@@ -238,7 +241,7 @@ def _energy(x: np.ndarray, r: np.ndarray, rho: float, fc: np.ndarray, fr: np.nda
     return E, grad.reshape(-1)
 
 
-def _relax(start: np.ndarray, r: np.ndarray, rho: float, fc: np.ndarray, fr: np.ndarray) -> np.ndarray:
+def _relax(start: np.ndarray, r: np.ndarray, rho, fc: np.ndarray, fr: np.ndarray) -> np.ndarray:
     """Minimise the penalty energy from ``start`` with a small L-BFGS (two-loop recursion, Armijo
     backtracking).  Own implementation: scipy's L-BFGS-B calls multithreaded BLAS on these tiny
     problems and was measured 60-100x slower on a loaded 2-core machine."""
@@ -288,23 +291,28 @@ def _relax(start: np.ndarray, r: np.ndarray, rho: float, fc: np.ndarray, fr: np.
     return x.reshape(-1, 2)
 
 
-def _random_start(rng: np.random.Generator, r: np.ndarray, rho: float) -> np.ndarray:
+def _random_start(rng: np.random.Generator, r: np.ndarray, rho) -> np.ndarray:
     rad = np.maximum(rho - r, 0.0) * np.sqrt(rng.random(len(r)))
     th = 2.0 * math.pi * rng.random(len(r))
     return np.c_[rad * np.cos(th), rad * np.sin(th)]
 
 
-def _solutions(r: np.ndarray, fc: np.ndarray, fr: np.ndarray, gap: float, seed: int, restarts: int = _RESTARTS):
+def _solutions(r: np.ndarray, fc: np.ndarray, fr: np.ndarray, gap: float, seed: int, restarts: int = _RESTARTS,
+               rims: np.ndarray | None = None):
     """Yield verified centres for radii ``r`` (descending, unit container) next to the fixed disks
-    (fc, fr) with every gap involving a new disk >= gap + 1.5 SLACK: first the greedy placements,
-    then penalty-energy minima from seeded random starts (at most ``restarts`` of them)."""
+    (fc, fr) with every gap involving a new disk >= gap + 1.5 SLACK (to the rim ``rims[i]`` for disk i, a
+    smaller container for a disk whose centre is bound closer to the centre; default 1): first the greedy
+    placements, then penalty-energy minima from seeded random starts (at most ``restarts`` of them)."""
     infl = (gap + _BUILD) / 2.0
-    rads, frads, rho = r + infl, fr + infl, 1.0 - infl
+    rads, frads = r + infl, fr + infl
+    rho = 1.0 - infl if rims is None else rims - infl
+    rhos = np.broadcast_to(rho, r.shape)
+    rim = 1.0 if rims is None else rims
     check = gap + (SLACK + _BUILD) / 2.0
     partial = None
     for rule in ("hole", "rim"):
-        c, k = _greedy(rads, fc, frads, rho, rule)
-        if k == len(r) and _gaps_ok(1.0, c, r, fc, fr, check):
+        c, k = _greedy(rads, fc, frads, rhos, rule)
+        if k == len(r) and _gaps_ok(rim, c, r, fc, fr, check):
             yield c
         elif partial is None or k > partial[1]:
             partial = (c, k)
@@ -315,13 +323,15 @@ def _solutions(r: np.ndarray, fc: np.ndarray, fr: np.ndarray, gap: float, seed: 
         if attempt == 0 and partial is not None:
             start[: partial[1]] = partial[0][: partial[1]]
         c = _relax(start, ro, rhoo, fc, fro)
-        if _gaps_ok(1.0, c, r, fc, fr, check):
+        if _gaps_ok(rim, c, r, fc, fr, check):
             yield c
 
 
 @lru_cache(maxsize=1 << 16)
-def _pack_sorted(R: float, radii: tuple[float, ...], seed: int) -> np.ndarray | None:
-    """Cached P_s on radii sorted in descending order; returns read-only centres in that order."""
+def _pack_sorted(R: float, radii: tuple[float, ...], seed: int, rims: tuple[float, ...] | None = None
+                 ) -> np.ndarray | None:
+    """Cached P_s on radii sorted in descending order (``rims``: the rim each disk keeps inside, at most R;
+    default R); returns read-only centres in that order."""
     if not radii:
         out = np.zeros((0, 2))
         out.flags.writeable = False
@@ -329,15 +339,21 @@ def _pack_sorted(R: float, radii: tuple[float, ...], seed: int) -> np.ndarray | 
     r = np.asarray(radii) / R
     if not _necessary(r):
         return None
+    rim = R if rims is None else np.asarray(rims)
+    if rims is not None:
+        reach = rim - np.asarray(radii)  # |c_i| <= reach_i, so |c_i - c_j| <= reach_i + reach_j
+        i, j = np.triu_indices(len(r), 1)
+        if np.any(reach < 0.0) or np.any(reach[i] + reach[j] < r[i] * R + r[j] * R):
+            return None
     none = np.empty((0, 2)), np.empty(0)
     if len(r) == 1:
         c = np.zeros((1, 2))
     else:
-        c = next(_solutions(r, *none, 0.0, seed), None)
+        c = next(_solutions(r, *none, 0.0, seed, rims=None if rims is None else rim / R), None)
         if c is None:
             return None
     out = c * R
-    if not _gaps_ok(R, out, np.asarray(radii), *none, SLACK * R):
+    if not _gaps_ok(rim, out, np.asarray(radii), *none, SLACK * R):
         return None
     out.flags.writeable = False
     return out
@@ -357,24 +373,38 @@ def pack(region_radius: float, radii: Sequence[float], seed: int = 0) -> np.ndar
     return out
 
 
-def fits(region_radius: float, radii: Sequence[float]) -> bool:
+def fits(region_radius: float, radii: Sequence[float], rims: Sequence[float] | None = None) -> bool:
     """P_{s,0}: True iff P_s finds a verified packing of ``radii`` in the region disk (sound, cached on
-    the region radius and the sorted radii; ``fits.cache_info()`` / ``fits.cache_clear()``)."""
+    the region radius and the sorted radii; ``fits.cache_info()`` / ``fits.cache_clear()``).  ``rims``: per
+    disk, the radius of the concentric disk it must keep inside (at most the region's; a disk whose centre
+    is bound to |c| <= rim - r)."""
     R = _check_radius(region_radius, "region_radius")
     r = _check_radii(radii, "radii")
-    return _pack_sorted(R, tuple(sorted(r.tolist(), reverse=True)), 0) is not None
+    if rims is None:
+        return _pack_sorted(R, tuple(sorted(r.tolist(), reverse=True)), 0) is not None
+    rim = np.minimum(np.asarray([float(x) for x in rims], dtype=float).reshape(-1), R)
+    if len(rim) != len(r) or not np.all(np.isfinite(rim)):
+        raise ValueError(f"rims must be {len(r)} finite numbers")
+    pairs = sorted(zip(r.tolist(), rim.tolist()), key=lambda p: (-p[0], p[1]))
+    return _pack_sorted(R, tuple(p[0] for p in pairs), 0, tuple(p[1] for p in pairs)) is not None
 
 
 fits.cache_info = _pack_sorted.cache_info  # type: ignore[attr-defined]
 fits.cache_clear = _pack_sorted.cache_clear  # type: ignore[attr-defined]
 
 
-def entities_fit(region_radius: float, radii, spacing: float) -> bool:
+def entities_fit(region_radius: float, radii, spacing: float, bounds: Sequence[float | None] | None = None) -> bool:
     """P_{s,0} with the layout spacing: disks of ``radii`` fit in the region keeping ``spacing`` between
     any two of them and between each and the region's rim (radii inflated by spacing/2, container
-    shrunk by spacing/2)."""
+    shrunk by spacing/2).  ``bounds[i]`` (None: none): disk i's centre is at most region_radius − bounds[i]
+    − spacing/2 from the region's centre, where a disk of radius bounds[i] around it keeps spacing/2 to the
+    rim (an object put down by a team of that covering radius)."""
     half = 0.5 * spacing
-    return fits(region_radius - half, sorted((float(r) + half for r in radii), reverse=True))
+    if bounds is None or all(b is None for b in bounds):
+        return fits(region_radius - half, sorted((float(r) + half for r in radii), reverse=True))
+    R = region_radius - half
+    rims = [R if b is None else min(R, region_radius - float(b) + float(r)) for r, b in zip(radii, bounds)]
+    return fits(R, [float(r) + half for r in radii], rims)
 
 
 def _spread(c: np.ndarray, r: np.ndarray, fc: np.ndarray, fr: np.ndarray) -> np.ndarray:

@@ -154,11 +154,11 @@ class TransitionSystem:
         self._cover: dict[tuple, float | None] = {}
         self._carry: dict[int, np.ndarray | None] = {}
         self._robot_regions: list[set[int]] | None = None
-        self._fits: dict[tuple[int, tuple[float, ...]], bool] = {}
+        self._fits: dict[tuple[int, tuple], bool] = {}
         self._valid: dict[State, bool] = {}
         self._label: dict[State, int] = {}
         self._pairs: dict[tuple, list[tuple[int, int]]] = {}
-        self._radius_ids: dict[float, int] = {}
+        self._radius_ids: dict = {}
         self._radius_values: list[float] = [0.0]
         self._fit_tables: dict[int, np.ndarray] = {}
         self._fit_memo: dict[int, dict[int, int]] = {}
@@ -434,14 +434,31 @@ class TransitionSystem:
         return total * ok / draws
 
     # ------------------------------------------------------------------ validity
-    def region_fits(self, k: int, radii: Sequence[float]) -> bool:
-        """P_{s,0} for region k with the layout spacing (cached on the sorted radii)."""
-        key = (k, tuple(sorted(radii, reverse=True)))
+    def region_fits(self, k: int, radii: Sequence) -> bool:
+        """P_{s,0} for region k with the layout spacing (cached on the sorted units): each unit a radius, or
+        (radius, bound) for an object whose centre a team of covering radius ``bound`` put down
+        (:meth:`parked_unit`)."""
+        units = tuple(sorted(((u, 0.0) if not isinstance(u, tuple) else u for u in radii), reverse=True))
+        key = (k, units)
         ok = self._fits.get(key)
         if ok is None:
-            ok = entities_fit(self.region_radius[k], key[1], self.spacing)
+            bounds = [b or None for _, b in units]
+            ok = entities_fit(self.region_radius[k], [r for r, _ in units], self.spacing, bounds)
             self._fits[key] = ok
         return ok
+
+    def parked_unit(self, j: int, k: int):
+        """The P_s unit of object j lying ungrasped in region k: its radius in its initial region, elsewhere
+        (radius, bound) with bound the smallest covering radius of a team that can carry it
+        (:meth:`smallest_team_radius`).  Objects move only with a team, which puts each one down where the
+        team's covering disk fits in the region (the placement's team spots keep spacing/2 to the rim), so
+        outside its initial region the object's centre is at most R_k − bound − spacing/2 from the region's
+        centre: a sound bound whichever team carried it."""
+        r = self.object_radius[j]
+        if k == self.initial[self.N + j]:
+            return r
+        bound = self.smallest_team_radius(j)
+        return r if bound is None else (r, bound)
 
     def region_entities(self, s: State) -> list[list[float]]:
         """Radii of the entities in each region (free robots, ungrasped objects, teams)."""
@@ -455,7 +472,7 @@ class TransitionSystem:
             else:
                 teams[G[i]].append(i)
         for j in range(M):
-            per[O[j]].append(self.covering_radius(j, tuple(teams[j])) if teams[j] else self.object_radius[j])
+            per[O[j]].append(self.covering_radius(j, tuple(teams[j])) if teams[j] else self.parked_unit(j, O[j]))
         return per
 
     def is_valid(self, s: State) -> bool:
@@ -512,7 +529,7 @@ class TransitionSystem:
                 radii.append(self.robot_radius[i])
         for j in range(M):
             if s[N + j] == k or t[N + j] == k:
-                radii.append(self.covering_radius(j, tuple(teams[j])) if j in teams else self.object_radius[j])
+                radii.append(self.covering_radius(j, tuple(teams[j])) if j in teams else self.parked_unit(j, k))
         return self.region_fits(k, radii)
 
     def steps_fit(self, A: np.ndarray, B: np.ndarray) -> np.ndarray:
@@ -657,7 +674,7 @@ class TransitionSystem:
             team = (G == j) @ (np.int64(1) << np.arange(N, dtype=np.int64))
             teams, inv = np.unique(team, return_inverse=True)
             rid = np.array([self._radius_id(self.covering_radius(j, tuple(i for i in range(N) if t >> i & 1))
-                                            if t else self.object_radius[j]) for t in teams.tolist()], dtype=np.int64)
+                                            if t else self.parked_unit(j, k)) for t in teams.tolist()], dtype=np.int64)
             ids[:, N + j] = np.where(m >> (N + j) & 1, rid[inv.ravel()], 0)
         ids.sort(axis=1)
         values = self._radius_values
@@ -671,8 +688,9 @@ class TransitionSystem:
                        dtype=bool)
         return fit[inv.ravel()]
 
-    def _radius_id(self, r: float) -> int:
-        """A number ≥ 1 per distinct radius value (exact float equality: same value, same P_s key)."""
+    def _radius_id(self, r) -> int:
+        """A number ≥ 1 per distinct P_s unit (a radius, or :meth:`parked_unit`'s pair; exact float equality:
+        same value, same P_s key)."""
         x = self._radius_ids.get(r)
         if x is None:
             x = self._radius_ids[r] = len(self._radius_values)
@@ -687,7 +705,7 @@ class TransitionSystem:
         for j in range(self.M):
             if mask >> (N + j) & 1:
                 team = tuple(i for i in range(N) if G[i] == j)
-                radii.append(self.covering_radius(j, team) if team else self.object_radius[j])
+                radii.append(self.covering_radius(j, team) if team else self.parked_unit(j, k))
         return self.region_fits(k, radii)
 
     # ------------------------------------------------------------------ labels and cost

@@ -356,3 +356,45 @@ def test_typical_calls_are_decided_by_greedy_placement(monkeypatch):
     fits.cache_clear()
     assert all(fits(4.0, radii) for radii in TYPICAL)
     fits.cache_clear()
+
+
+# ------------------------------------------------------------------------------------ disks bound inward
+
+
+@settings(max_examples=120, derandomize=True, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(R=st.floats(0.5, 20.0), fracs=st.lists(RADIUS_FRACTION, min_size=1, max_size=8),
+       bound=st.lists(st.floats(0.0, 1.0), min_size=8, max_size=8))
+def test_disks_bound_inward_are_packed_soundly_and_never_fit_where_unbound_ones_do_not(R, fracs, bound):
+    radii = sorted((f * R for f in fracs), reverse=True)
+    # disk i keeps inside a concentric rim between its own radius and R
+    rims = [r + b * (R - r) for r, b in zip(radii, bound)]
+    pairs = sorted(zip(radii, rims), key=lambda p: (-p[0], p[1]))
+    c = packing._pack_sorted(R, tuple(p[0] for p in pairs), 0, tuple(p[1] for p in pairs))
+    assert fits(R, radii, rims) == (c is not None)
+    if c is None:
+        return
+    assert fits(R, radii)  # a bound only takes placements away
+    for (r, rim), ci in zip(pairs, c):
+        assert rim - math.hypot(*ci) - r >= SAFE * R
+    assert min_gap(R, c, [p[0] for p in pairs]) >= SAFE * R
+
+
+def test_rims_of_the_region_itself_change_nothing():
+    for radii in ([1.0, 0.9, 0.5], [0.3] * 7, [2.0, 0.4]):
+        assert fits(3.0, radii, [3.0] * len(radii)) == fits(3.0, radii)
+
+
+def test_two_disks_bound_near_the_centre_fit_only_if_their_reaches_part_them():
+    # centres within reach_i = rim_i - r_i of the centre are at most reach_1 + reach_2 apart
+    assert not fits(2.5, [0.3, 1.95], [0.3 + 0.6, 2.5])  # 0.6 + 0.55 < 2.25
+    assert fits(2.5, [0.3, 1.95], [0.3 + 1.8, 2.5])  # 1.8 + 0.55 > 2.25
+    assert fits(2.5, [0.3, 1.95])
+
+
+def test_an_object_put_down_by_a_team_is_bound_to_where_the_team_fitted():
+    # R = 2.5, spacing 0.1: a free object of radius 0.3 and a team of covering radius 1.95 fit together;
+    # an object a team of covering radius 1.9 put down (centre within 2.5 - 1.9 - 0.05 = 0.55) does not
+    assert packing.entities_fit(2.5, [0.3, 1.95], 0.1)
+    assert not packing.entities_fit(2.5, [0.3, 1.95], 0.1, [1.9, None])
+    assert packing.entities_fit(2.5, [0.3], 0.1, [2.44]) and not packing.entities_fit(2.5, [0.3], 0.1, [2.46])
+    assert packing.entities_fit(4.0, [0.3, 1.95], 0.1, [1.9, None])

@@ -33,23 +33,44 @@ def case1():
 
 
 # ---------------------------------------------------------------------------------------------- oracle
+def oracle_put_down(sc, j: int, k: int) -> float | None:
+    """An ungrasped object outside its initial region was put down by a team able to carry it: the smallest
+    covering radius of such a team (None in its initial region, or when no team can carry it)."""
+    if sc.region_names[k] == sc.objects[j].initial_region:
+        return None
+    covers = [grasp_layout(sc.objects[j].radius, [sc.robots[i].radius for i in team], sc.layout.grasp_gap)
+              .covering_radius for n in range(1, len(sc.robots) + 1)
+              for team in itertools.combinations(range(len(sc.robots)), n)
+              if sum(sc.robots[i].power for i in team) >= sc.objects[j].required_power]
+    return min(covers, default=None)
+
+
+def oracle_fit(sc, k: int, G, inside) -> bool:
+    """The entities ``inside`` region k (robot or object indices into R + O) fit, under the grasps G."""
+    N = len(sc.robots)
+    radii, bounds = [], []
+    for e in inside:
+        if e < N:
+            if G[e] < 0:
+                radii.append(sc.robots[e].radius)
+                bounds.append(None)
+            continue
+        j = e - N
+        team = [sc.robots[i].radius for i in range(N) if G[i] == j]
+        radii.append(grasp_layout(sc.objects[j].radius, team, sc.layout.grasp_gap).covering_radius
+                     if team else sc.objects[j].radius)
+        bounds.append(None if team else oracle_put_down(sc, j, k))
+    return not radii or entities_fit(sc.regions[k].radius, radii, sc.layout.spacing, bounds)
+
+
 def oracle_valid(ts: TransitionSystem, s) -> bool:
-    """Validity written directly from the issue: grasps co-located, each region's entities fit."""
+    """Validity written directly from the issue: grasps co-located, each region's entities fit (an object
+    lying outside its initial region where a team that can carry it fits around it)."""
     N, M = ts.N, ts.M
     R, O, G = s[:N], s[N : N + M], s[N + M :]
     if any(g >= 0 and R[i] != O[g] for i, g in enumerate(G)):
         return False
-    sc = ts.scenario
-    for k in range(ts.K):
-        radii = [sc.robots[i].radius for i in range(N) if R[i] == k and G[i] < 0]
-        for j in range(M):
-            if O[j] == k:
-                team = [sc.robots[i].radius for i in range(N) if G[i] == j]
-                radii.append(grasp_layout(sc.objects[j].radius, team, sc.layout.grasp_gap).covering_radius
-                             if team else sc.objects[j].radius)
-        if radii and not entities_fit(sc.regions[k].radius, radii, sc.layout.spacing):
-            return False
-    return True
+    return all(oracle_fit(ts.scenario, k, G, [e for e in range(N + M) if s[e] == k]) for k in range(ts.K))
 
 
 def oracle_transition(ts: TransitionSystem, s, t) -> bool:
@@ -96,13 +117,7 @@ def oracle_step_fits(ts: TransitionSystem, s, t) -> bool:
         if not (leaves and enters) and not holds:
             continue
         for G in (s[N + M:], t[N + M:]):
-            radii = [sc.robots[i].radius for i in range(N) if k in (s[i], t[i]) and G[i] < 0]
-            for j in range(M):
-                if k in (s[N + j], t[N + j]):
-                    team = [sc.robots[i].radius for i in range(N) if G[i] == j]
-                    radii.append(grasp_layout(sc.objects[j].radius, team, sc.layout.grasp_gap).covering_radius
-                                 if team else sc.objects[j].radius)
-            if not entities_fit(sc.regions[k].radius, radii, sc.layout.spacing):
+            if not oracle_fit(sc, k, G, [e for e in range(N + M) if k in (s[e], t[e])]):
                 return False
     return True
 
@@ -467,3 +482,44 @@ def test_a_grasp_among_robots_about_to_leave_must_fit_with_them():
     assert t not in set(ts.successor_states(s))
     assert ts.step_fits(s, mid) and ts.step_fits(mid, t) and ts.check_transition(s, mid) is None
     assert ts.check_transition(mid, t) is None
+
+
+def _put_down_floor():
+    """p1 and p2 (radius 2.5 m) on an empty floor; o1 starts in p1 and o2 in p2, each carried by r1 or r2
+    alone (power 4 >= 2.5; covering radius 1.9 m)."""
+    return scenario_from_dict({
+        "name": "put_down", "workspace": {"boundary": [[0, 0], [40, 0], [40, 20], [0, 20]]},
+        "regions": [{"name": "p1", "center": [10, 10], "radius": 2.5},
+                    {"name": "p2", "center": [30, 10], "radius": 2.5}],
+        "robots": [{"name": "r1", "mass": 1.0, "radius": 0.75, "power": 4, "initial_region": "p1"},
+                   {"name": "r2", "mass": 1.0, "radius": 0.75, "power": 4, "initial_region": "p2"}],
+        "objects": [{"name": "o1", "mass": 0.3, "radius": 0.3, "required_power": 2.5, "initial_region": "p1"},
+                    {"name": "o2", "mass": 0.3, "radius": 0.3, "required_power": 2.5, "initial_region": "p2"}],
+        "task": {"formula": "G F r1_p1"}})
+
+
+def test_an_object_put_down_by_a_team_leaves_no_room_beside_it_for_a_team_in_a_small_region():
+    """Loop-map task n4 m2 k7 seed 1311: a robot put o2 down in p3 (radius 2.5 m), so o2's centre is within
+    R − 1.9 − spacing/2 = 0.55 m of p3's centre, and no team of covering radius 1.95 m could come in beside it;
+    a TS that counted o2 by its own radius anywhere in p3 let plans bring the team, and placement rejected
+    every one of them (17 plans, "satisfiability unknown").  Outside its initial region an ungrasped object
+    counts as put down by the smallest team able to carry it; in its initial region it lies anywhere."""
+    ts = TransitionSystem(_put_down_floor())
+    cover = ts.covering_radius(0, (0,))
+    assert ts.smallest_team_radius(0) == cover and ts.smallest_team_radius(1) == cover
+    R, half = 2.5, 0.5 * ts.spacing
+    # a team beside a free object of radius 0.3 fits: on opposite sides, R - 0.3 - spacing + R - cover - half
+    # >= 0.3 + cover + spacing; next to an object bound to R - cover - half of the centre it does not
+    assert (R - 0.3 - 2 * half) + (R - cover - half) >= 0.3 + cover + 2 * half
+    assert 2 * (R - cover - half) < 0.3 + cover + 2 * half
+    # states (r1, r2, o1, o2, grasps of r1, r2); r2 waits in p1
+    put_down = (1, 0, 1, 1, 1, -1)  # o1 (from p1) lies in p2 while r1 holds o2 there
+    at_home = (1, 0, 1, 1, 0, -1)  # o2 lies at home in p2 while r1 holds o1 there
+    assert not ts.is_valid(put_down) and not oracle_valid(ts, put_down)
+    assert ts.is_valid(at_home) and oracle_valid(ts, at_home)
+    # r1 in p2 next to both objects lying there may grasp o1 (o2 lies anywhere), not o2 (o1 is near the centre)
+    s = (1, 0, 1, 1, -1, -1)
+    assert ts.is_valid(s) and oracle_valid(ts, s)
+    succ = set(ts.successor_states(s))
+    assert at_home in succ and put_down not in succ
+    assert ts.check_transition(s, put_down) is not None
