@@ -129,8 +129,9 @@ def reachable(C: np.ndarray, k: int) -> set[int]:
 class TransitionSystem:
     """TS of a scenario with implicit successors; see :meth:`build` for the explicit reachable graph."""
 
-    def __init__(self, scenario: Scenario):
+    def __init__(self, scenario: Scenario, bind_home: bool = False):
         self.scenario = scenario
+        self.bind_home = bool(bind_home)
         self.N, self.M, self.K = len(scenario.robots), len(scenario.objects), len(scenario.regions)
         self.robot_names = scenario.robot_names
         self.object_names = scenario.object_names
@@ -453,9 +454,11 @@ class TransitionSystem:
         (:meth:`smallest_team_radius`).  Objects move only with a team, which puts each one down where the
         team's covering disk fits in the region (the placement's team spots keep spacing/2 to the rim), so
         outside its initial region the object's centre is at most R_k − bound − spacing/2 from the region's
-        centre: a sound bound whichever team carried it."""
+        centre: a sound bound whichever team carried it.  With ``bind_home`` the bound holds in the initial
+        region too (where it holds only once a team grasps the object there): a sub-TS whose runs leave every
+        object room for a team wherever it lies."""
         r = self.object_radius[j]
-        if k == self.initial[self.N + j]:
+        if k == self.initial[self.N + j] and not self.bind_home:
             return r
         bound = self.smallest_team_radius(j)
         return r if bound is None else (r, bound)

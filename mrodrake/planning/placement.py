@@ -105,7 +105,8 @@ class Placement:
 
 class PlacementError(UserError):
     """The executed run needs room a region does not have (one line naming the step and the region);
-    ``step`` is the executed step that failed (None: the initial layout) and ``region`` its region."""
+    ``step`` is the executed step that failed, or for an initial layout that cannot keep the room a later step
+    needs, that step (None: an initial layout that fails by itself), and ``region`` its region."""
 
     def __init__(self, message: str, step: StepSpec | None = None, region: int = -1):
         super().__init__(message)
@@ -166,6 +167,9 @@ class _Placer:
                           if isinstance(a, Transport)}
         #: learned (centre, distance) to keep from, per (entity, executed step of its arrival; -1: start)
         self.hints: dict[tuple[int, int], list[tuple[np.ndarray, float]]] = {}
+        #: the executed step whose need taught the hints of an (entity, arrival) pair first
+        self.taught_by: dict[tuple[int, int], StepSpec] = {}
+        self.current: StepSpec | None = None
         #: team layout rotation of an object whose members stand on their slots from the start (first grasp)
         self.preset: dict[int, float] = {}
 
@@ -175,6 +179,7 @@ class _Placer:
         self.variant = int(variant)
         self.rng = np.random.default_rng([self.seed, self.variant])
         self.hints = {}
+        self.taught_by = {}
         self.preset = {}
 
     # ------------------------------------------------------------------------------------ geometry
@@ -728,6 +733,8 @@ class _Placer:
         """Learn (centre, distance) pairs for the arrival that put entity x where it is; raises _Retry when
         one of them is new (at most 8 per arrival)."""
         known = self.hints.setdefault((x, w.placed[x]), [])
+        if self.current is not None:
+            self.taught_by.setdefault((x, w.placed[x]), self.current)
         new = False
         for center, dist in items:
             if any(np.allclose(c, center) and d >= dist for c, d in known) or len(known) >= 8:
@@ -1004,8 +1011,10 @@ class _Placer:
                 for n in order:
                     p = self.spot(k, radii[n], cs, rs, self.hints.get((ents[n], -1), []))
                     if p is None:
+                        need = self.taught_by.get((ents[n], -1))
+                        later = "later steps need" if need is None else f"step {need.index} needs"
                         raise PlacementError(f"initial state: region '{self.ts.region_names[k]}': no layout "
-                                             "keeps the room later steps need", None, k)
+                                             f"keeps the room {later}", need, k)
                     pos[ents[n]] = p
                     cs.append(p)
                     rs.append(radii[n])
@@ -1095,6 +1104,7 @@ class _Placer:
         self.deferred = set()
         out = []
         for step, spec in enumerate(self.steps):
+            self.current = spec
             ops: list[PlacedOp] = []
             releases: dict[int, list[int]] = {}
             grasps: dict[int, list[int]] = {}

@@ -411,7 +411,10 @@ def plan_scenario(scenario, planner: str = "stylus", seed: int | None = None, it
 
     ``planner="stylus"``: STyLuS* with ``seed`` (default ``planning.seed``) for ``iterations`` (default
     ``planning.iterations``) or ``time_limit`` seconds; ``"exact"``: optimal plan on the explicit product.
-    Both plan on the executed-word semantics.  A plan is returned only when its executed run (the prefix and
+    Both plan on the executed-word semantics.  STyLuS* searches first the sub-TS in which every object, in
+    its initial region too, lies where its smallest team fits around it (``TransitionSystem(bind_home=True)``:
+    its runs leave room to grasp each object wherever it lies, so placement rejects fewer of them), and the
+    whole TS once that search finds nothing.  A plan is returned only when its executed run (the prefix and
     ``suffix_cycles`` suffix cycles) places (:func:`~mrodrake.planning.placement.place_plan` with
     ``layout_seed``, default the planner's seed or 0: what ``Mission(seed=...)`` uses); a plan placement
     rejects bans the step that failed and the planner searches again (``place=False``: no placement).
@@ -438,6 +441,7 @@ def _plan_scenario(scenario, planner, seed, iterations, time_limit, progress, re
         raise UserError(f"suffix_cycles: must be >= 0, got {suffix_cycles}")
     t0 = time.perf_counter()
     ts = TransitionSystem(scenario)
+    strict = TransitionSystem(scenario, bind_home=True) if planner == "stylus" and ts.M else None
     formula, nba, words = task_words(scenario, ts)
     check_power(ts, nba)
     used_seed = None if planner == "exact" else (scenario.planning.seed if seed is None else int(seed))
@@ -453,9 +457,10 @@ def _plan_scenario(scenario, planner, seed, iterations, time_limit, progress, re
             res = solve_exact(ts, nba, words.relevant, progress=report, banned=tuple(banned))
         else:
             try:
-                res = Stylus(ts, nba, words.relevant, seed=used_seed, replan=replan, banned=banned).run(
+                res = Stylus(strict or ts, nba, words.relevant, seed=used_seed, replan=replan, banned=banned).run(
                     its, time_limit=time_limit, progress=progress)
             except NoPlanFound as first:
+                strict = None
                 if report:
                     report("deciding satisfiability")
                 if decision is None or decision.exact is not None and banned:

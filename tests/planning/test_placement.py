@@ -13,6 +13,7 @@ import yaml
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
+from mrodrake.planning.generate import generate_scenario
 from mrodrake.planning.placement import OpKind, PlacementError, layout_slots, place_run
 from mrodrake.planning.plan import plan_scenario
 from mrodrake.planning.steps import StepSpec, expand_steps
@@ -375,3 +376,28 @@ def test_an_object_whose_team_disk_is_not_reserved_starts_where_its_team_can_for
         xo = initial[ts.N + j]
         assert any(np.all(np.linalg.norm(layout_slots(ts, j, team, xo, rot) - centre, axis=1) <= 1.3 - 0.25 - 0.05)
                    for rot in np.linspace(0.0, 2.0 * math.pi, 72, endpoint=False)), (j, xo)
+
+
+def _loop_map():
+    """A 30 m x 24 m floor around a 14 m x 8 m block, seven regions of radius 2.5 m, two pairs of them
+    5.5 m apart (crowded)."""
+    return scenario_from_dict({
+        "name": "loop",
+        "workspace": {"boundary": [[0, 0], [30, 0], [30, 24], [0, 24]],
+                      "obstacles": [{"name": "block", "polygon": [[8, 8], [22, 8], [22, 16], [8, 16]]}]},
+        "regions": [{"name": f"p{k + 1}", "center": c, "radius": 2.5}
+                    for k, c in enumerate([[4, 4], [9.5, 4], [26, 4], [26, 20], [15, 20], [4, 20], [4, 12]])],
+        "robots": [{"name": "r1", "mass": 1.0, "radius": 0.75, "power": 2, "initial_region": "p1"}],
+        "objects": [], "task": {"formula": "F r1_p4"}})
+
+
+def test_a_task_whose_object_must_leave_a_small_region_before_a_team_comes_in_plans_at_once():
+    """Loop map, four robots and two objects, layout seed 485850373: o1 starts in p7 (radius 2.5 m) and must
+    later be carried out by one robot (covering radius 1.98 m, so it stands within 0.47 m of p7's centre),
+    while o2 must be brought into p7 by a team.  On the whole TS, STyLuS* kept bringing o2's team in first,
+    and placement rejected 17 plans ("satisfiability unknown"); on the sub-TS where every object lies where
+    its smallest team fits around it, the first plan places."""
+    sc = generate_scenario(4, 2, 7, 1310, map=_loop_map())
+    plan = plan_scenario(sc, seed=0, iterations=3000, layout_seed=485850373)
+    assert plan.placement is not None and plan.placement.steps
+    assert plan.stats["placement"]["rejected"] == []
