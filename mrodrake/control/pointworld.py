@@ -856,6 +856,12 @@ class PointWorldMap:
         return float(out[0]) if single else out
 
     # ------------------------------------------------------------------ evaluation
+    @cached_property
+    def extent(self) -> float:
+        """Diagonal of the free space's bounding box (the diameter that scales a resolution)."""
+        minx, miny, maxx, maxy = self.free_space.bounds
+        return math.hypot(maxx - minx, maxy - miny)
+
     @property
     def tree(self) -> PanelTree:
         """The treecode of H (:mod:`mrodrake.control.treecode`), built on first use."""

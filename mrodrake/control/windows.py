@@ -94,8 +94,11 @@ def point_resolution(pw_map, x) -> float:
     fro = a * a + b * b + c * c + d * d
     det = abs(a * d - b * c)
     s_max = math.sqrt(0.5 * (fro + math.sqrt(max(fro * fro - 4.0 * det * det, 0.0))))
-    minx, miny, maxx, maxy = pw_map.free_space.bounds
-    return (det / s_max if s_max > 0.0 else 0.0) * math.hypot(maxx - minx, maxy - miny)
+    extent = getattr(pw_map, "extent", None)
+    if extent is None:
+        minx, miny, maxx, maxy = pw_map.free_space.bounds
+        extent = math.hypot(maxx - minx, maxy - miny)
+    return (det / s_max if s_max > 0.0 else 0.0) * extent
 
 
 def grid_path(poly: Polygon, start, goal, step: float = GRID_STEP,

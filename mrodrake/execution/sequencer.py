@@ -730,9 +730,15 @@ class Sequencer:
         its goal (the destination), that disk (:class:`~mrodrake.execution.schedule.Corridor`)."""
         if m.corridor is None or not m.corridor.spots[0 if k == m.src else 1]:
             return self._local_world(X, m.entity, m.radius, k, m.team, extra)
-        c = np.asarray(m.start if k == m.src else m.goal, dtype=float)
-        centers, radii = disk_obstacles(X, self.radii, m.radius, [m.entity, *m.team], c, SPOT_LEG)
-        return c, SPOT_LEG, centers, radii
+        c, R = self._motion_rim(m, k, extra)
+        centers, radii = disk_obstacles(X, self.radii, m.radius, [m.entity, *m.team], c, R)
+        return c, R, centers, radii
+
+    def _motion_rim(self, m: Motion, k: int, extra: float) -> tuple[np.ndarray, float]:
+        """(rim centre, rim radius) of :meth:`_motion_world`, without its obstacles."""
+        if m.corridor is None or not m.corridor.spots[0 if k == m.src else 1]:
+            return self.centers[k], float(self.region_radii[k] + extra - m.radius)
+        return np.asarray(m.start if k == m.src else m.goal, dtype=float), SPOT_LEG
 
     def _ring(self, m: Motion, k: int) -> float:
         """Width of the approach ring of region k (the source or destination of ``m``) that ``m`` may use."""
@@ -1008,11 +1014,12 @@ class Sequencer:
             return m
         k, x = m.dst, X[m.entity, :2]
         ring = self._ring(m, k)
-        c, R, centers, radii = self._motion_world(X, m, k, ring)
+        c, R = self._motion_rim(m, k, ring)
         depth = R - math.hypot(*(x - c))
         slow = math.hypot(*X[m.entity, 2:]) <= self.rest_speed
         if depth < SETTLE_DEPTH and not (slow and depth >= 0.1 * SETTLE_DEPTH):
             return m
+        c, R, centers, radii = self._motion_world(X, m, k, ring)
         try:
             legs = local_path(x, np.asarray(m.goal), centers, radii, c, R)
         except ValueError:
