@@ -29,6 +29,7 @@ Labels: ``<robot>_<region>`` / ``<object>_<region>`` true where the entity is.  
 from __future__ import annotations
 
 import array
+import copy
 import itertools
 import math
 import time
@@ -447,6 +448,16 @@ class TransitionSystem:
             ok = entities_fit(self.region_radius[k], [r for r, _ in units], self.spacing, bounds)
             self._fits[key] = ok
         return ok
+
+    def bound_at_home(self) -> TransitionSystem:
+        """This TS with ``bind_home`` (:meth:`parked_unit`), sharing every cache packing does not decide
+        (region graph and connections, labels, option pairs, team radii, P_s answers per unit multiset)."""
+        self.region_graph  # noqa: B018 (built here, so that both share it)
+        self.robot_regions()
+        sub = copy.copy(self)
+        sub.bind_home = True
+        sub._valid, sub._fit_tables, sub._fit_memo = {}, {}, {}
+        return sub
 
     def parked_unit(self, j: int, k: int):
         """The P_s unit of object j lying ungrasped in region k: its radius in its initial region, elsewhere

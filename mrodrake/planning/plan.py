@@ -441,7 +441,7 @@ def _plan_scenario(scenario, planner, seed, iterations, time_limit, progress, re
         raise UserError(f"suffix_cycles: must be >= 0, got {suffix_cycles}")
     t0 = time.perf_counter()
     ts = TransitionSystem(scenario)
-    strict = TransitionSystem(scenario, bind_home=True) if planner == "stylus" and ts.M else None
+    strict = ts.bound_at_home() if planner == "stylus" and ts.M else None
     formula, nba, words = task_words(scenario, ts)
     check_power(ts, nba)
     used_seed = None if planner == "exact" else (scenario.planning.seed if seed is None else int(seed))

@@ -286,7 +286,7 @@ class MissionControllers(LeafSystem):
 
     def DoCalcTimeDerivatives(self, context, derivatives):
         _, active, _ = self._tasks.Eval(context)
-        out = [0.0] * (2 * len(self.names))
+        out = np.zeros(2 * len(self.names))
         for q in active:
             ev = self._laws[q].Eval(context)
             out[2 * q] = ev.m_hat_dot
