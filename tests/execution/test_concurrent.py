@@ -393,16 +393,23 @@ def _blocks(placement, order):
     return out
 
 
-@settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow])
-@given(task=_tasks())
-def test_every_word_of_a_concurrent_run_satisfies_the_task(task):
+def _planned(task):
+    """(scenario, plan or None, seed, formula) of a drawn task: the generated scenario with the formula."""
     n, m, k, seed, formula = task
     data = generate_scenario_data(n, m, k, seed)
     data["task"] = {"formula": formula, "propositions": {}}
     sc = scenario_from_dict(data)
     try:
-        plan = plan_scenario(sc, iterations=300, seed=seed, layout_seed=seed)
+        return sc, plan_scenario(sc, iterations=300, seed=seed, layout_seed=seed), seed, formula
     except (NoPlanFound, UserError):
+        return sc, None, seed, formula
+
+
+@settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(task=_tasks())
+def test_every_word_of_a_concurrent_run_satisfies_the_task(task):
+    sc, plan, seed, formula = _planned(task)
+    if plan is None:
         return
     f, _nba, words = task_words(sc, plan.ts)
     order = task_order(words, plan.placement)
@@ -440,13 +447,8 @@ def _region_events(ts, acts, rng) -> list[tuple[int, int]]:
 @settings(max_examples=30, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(task=_tasks())
 def test_the_monitor_reading_a_concurrent_run_holds_every_block_state(task):
-    n, m, k, seed, formula = task
-    data = generate_scenario_data(n, m, k, seed)
-    data["task"] = {"formula": formula, "propositions": {}}
-    sc = scenario_from_dict(data)
-    try:
-        plan = plan_scenario(sc, iterations=300, seed=seed, layout_seed=seed)
-    except (NoPlanFound, UserError):
+    sc, plan, seed, formula = _planned(task)
+    if plan is None:
         return
     _f, _nba, words = task_words(sc, plan.ts)
     ts = plan.ts
