@@ -130,9 +130,9 @@ def reachable(C: np.ndarray, k: int) -> set[int]:
 class TransitionSystem:
     """TS of a scenario with implicit successors; see :meth:`build` for the explicit reachable graph."""
 
-    def __init__(self, scenario: Scenario, bind_home: bool = False):
+    def __init__(self, scenario: Scenario):
         self.scenario = scenario
-        self.bind_home = bool(bind_home)
+        self.bind_home = False  # see bound_at_home
         self.N, self.M, self.K = len(scenario.robots), len(scenario.objects), len(scenario.regions)
         self.robot_names = scenario.robot_names
         self.object_names = scenario.object_names
@@ -475,7 +475,7 @@ class TransitionSystem:
         return r if bound is None else (r, bound)
 
     def region_entities(self, s: State) -> list[list[float]]:
-        """Radii of the entities in each region (free robots, ungrasped objects, teams)."""
+        """P_s units of the entities in each region (free robots, ungrasped objects, teams; :meth:`region_fits`)."""
         N, M = self.N, self.M
         R, O, G = s[:N], s[N : N + M], s[N + M :]
         per: list[list[float]] = [[] for _ in range(self.K)]
