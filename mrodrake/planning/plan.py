@@ -411,13 +411,14 @@ def plan_scenario(scenario, planner: str = "stylus", seed: int | None = None, it
 
     ``planner="stylus"``: STyLuS* with ``seed`` (default ``planning.seed``) for ``iterations`` (default
     ``planning.iterations``) or ``time_limit`` seconds; ``"exact"``: optimal plan on the explicit product.
-    Both plan on the executed-word semantics.  STyLuS* searches first the sub-TS in which every object, in
-    its initial region too, lies where its smallest team fits around it
-    (:meth:`~mrodrake.ts.TransitionSystem.bound_at_home`: its runs leave room to grasp each object wherever it
-    lies, so placement rejects fewer of them), and the whole TS once that search finds nothing.  A plan is
-    returned only when its executed run (the prefix and ``suffix_cycles`` suffix cycles) places
-    (:func:`~mrodrake.planning.placement.place_plan` with ``layout_seed``, default the planner's seed or 0: what ``Mission(seed=...)`` uses); a plan placement
-    rejects bans the step that failed and the planner searches again (``place=False``: no placement).
+    Both plan on the executed-word semantics. STyLuS* searches first the sub-TS in which every object, in its
+    initial region too, lies where its smallest team fits around it
+    (:meth:`~mrodrake.ts.TransitionSystem.bound_at_home`: its runs leave room to grasp each object wherever it lies,
+    so placement rejects fewer of them), and the whole TS once that search finds nothing. A plan is returned only
+    when its executed run (the prefix and ``suffix_cycles`` suffix cycles) places
+    (:func:`~mrodrake.planning.placement.place_plan` with ``layout_seed``, default the planner's seed or 0: what
+    ``Mission(seed=...)`` uses); a plan placement rejects bans the step that failed and the planner searches again
+    (``place=False``: no placement).
     When STyLuS* finds no plan within ``iterations``, :func:`~mrodrake.planning.decide.decide` tries to prove
     the task unsatisfiable (relaxations; the exact search when the product is small, whose plan is used), and
     otherwise STyLuS* samples up to :data:`EXTEND_FACTOR` times as long.  Unsatisfiable tasks raise a
