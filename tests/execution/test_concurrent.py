@@ -10,8 +10,7 @@
 * a safety clause that one interleaving of two concurrent crossings would violate keeps the two in the plan's
   order;
 * on random small plans, every executed word a concurrent run can produce (random linear extensions of the
-  job graph's crossings, block by block) satisfies the task, evaluated on the lasso without an automaton, and
-  the execution monitor reading such a run holds every block's planned NBA state at the block's end.
+  job graph's crossings, block by block) satisfies the task, evaluated on the lasso without an automaton.
 """
 
 from __future__ import annotations
@@ -27,7 +26,6 @@ from hypothesis import strategies as st
 
 from mrodrake.control.freespace import Disk
 from mrodrake.errors import NoPlanFound, UserError
-from mrodrake.execution.monitor import WordMonitor
 from mrodrake.execution.schedule import (
     SPOT_LEG,
     Corridor,
@@ -44,10 +42,9 @@ from mrodrake.logic.lasso import evaluate_lasso
 from mrodrake.planning.generate import generate_scenario_data
 from mrodrake.planning.placement import OpKind
 from mrodrake.planning.plan import plan_scenario, task_words
-from mrodrake.planning.semantics import bodies, crossings, entry_order
+from mrodrake.planning.semantics import crossings
 from mrodrake.scenario import scenario_from_dict
 from mrodrake.systems.mission import Mission
-from mrodrake.ts import Navigate, Transport
 from tests.helpers.jobs import generated_jobs
 from tests.helpers.tasks import region_atoms
 
@@ -422,48 +419,3 @@ def test_every_word_of_a_concurrent_run_satisfies_the_task(task):
         for specs, groups in blocks:
             (u if specs[0].cycle == 0 else v).extend(_block_word(ts, words.relevant, specs, groups, rng))
         assert evaluate_lasso(f, u, v, ts.propositions), (formula, u, v)
-
-
-def _region_events(ts, acts, rng) -> list[tuple[int, int]]:
-    """(body, region or −1) of every crossing of the bodies of ``acts`` in a random order that keeps every body's
-    leave before its entry and every entry after the leaves the geometry puts first."""
-    todo = []
-    for a in acts:
-        after = entry_order(ts, a)
-        todo += [("leave", b, a.src, ()) for b in bodies(ts, a)]
-        todo += [("enter", b, a.dst, after.get(b, ())) for b in bodies(ts, a)]
-    gone: set[int] = set()
-    out = []
-    while todo:
-        ready = [i for i, (kind, b, _r, after) in enumerate(todo)
-                 if kind == "leave" or (b in gone and all(e in gone for e in after))]
-        kind, b, r, _after = todo.pop(ready[rng.integers(len(ready))])
-        if kind == "leave":
-            gone.add(b)
-        out.append((b, -1 if kind == "leave" else r))
-    return out
-
-
-@settings(max_examples=30, deadline=None, suppress_health_check=[HealthCheck.too_slow])
-@given(task=_tasks())
-def test_the_monitor_reading_a_concurrent_run_holds_every_block_state(task):
-    sc, plan, seed, formula = _planned(task)
-    if plan is None:
-        return
-    _f, _nba, words = task_words(sc, plan.ts)
-    ts = plan.ts
-    rng = np.random.default_rng(seed)
-    order = task_order(words, plan.placement)
-    for _ in range(4):
-        monitor = WordMonitor(words, list(ts.initial[: ts.N + ts.M]))
-        for specs, groups in _blocks(plan.placement, order):
-            moves = [a for sp in specs for a in sp.actions
-                     if isinstance(a, (Navigate, Transport)) and not words.crossings(a)]
-            regions = list(monitor.regions)
-            for acts in groups + [[a] for a in moves]:
-                for b, r in _region_events(ts, acts, rng):
-                    regions[b] = r
-                    monitor.observe(regions)
-            monitor.end_step()
-            assert monitor.admits(specs[-1].dst_q), (formula, specs[-1].index)
-            monitor.begin_step()
