@@ -6,7 +6,8 @@ handles (Drake idiom: RussTedrake/manipulation's ``AddIiwa`` & co.).
   Demultiplexer giving each plant's [x, ẋ] its own port;
 * :func:`teams_of`: the team plants of the plan's transports;
 * :func:`AddControllers`: an adaptive navigation controller per robot and a transport controller per team
-  plant, one :class:`~mrodrake.systems.controllers.MissionControllers` system wired to the plants;
+  plant, one :class:`~mrodrake.systems.controllers.MissionControllers` system whose ``forces`` output drives
+  the plants' ``forces`` input (every robot's u and every team member's u_ℓ, one vector);
 * :func:`AddStateSwitches`: a PortSwitch per robot and object choosing its authoritative [x, ẋ] (its own
   plant, or the team plant it is coupled to), with the index of every input, and a Multiplexer stacking them;
 * :func:`AddSupervisor`: the supervisor with every task, sync and select connection.
@@ -100,11 +101,11 @@ def AddControllers(builder: DiagramBuilder, scenario: Scenario, plants: EntityPl
     inputs are connected by :func:`AddStateSwitches`)."""
     specs = [(f"nav_{r}", ()) for r in scenario.robot_names] + [(t.controller, t.members) for t in teams]
     ctrl = builder.AddSystem(MissionControllers(specs, gains))
-    for r in scenario.robot_names:
-        builder.Connect(ctrl.u_ports[f"nav_{r}"], plants.system.u_ports[r])
+    driven = {f"nav_{r}": r for r in scenario.robot_names} | {t.controller: t.name for t in teams}
+    if [(driven[c], n) for c, n in ctrl.force_slots] != plants.system.force_slots:
+        raise ValueError("the controllers' forces are not laid out as the plants' force input")
+    builder.Connect(ctrl.forces_port, plants.system.forces_port)
     for t in teams:
-        for u_out, u_in in zip(ctrl.member_u_ports[t.controller], plants.system.team_u_ports[t.name]):
-            builder.Connect(u_out, u_in)
         builder.Connect(plants.state_port(t.name), ctrl.state_ports[t.controller])
     return ctrl
 

@@ -164,13 +164,17 @@ class MissionControllers(LeafSystem):
     ``controllers`` the navigation law of one robot (``members`` empty) or the transport law of a team
     (``members`` its robots), as :class:`NavigationController` and :class:`TransportController` compute them.
 
-    Continuous state: [m̂, α̂] of every controller in :attr:`names` order.  Per controller ``c``: inputs
-    ``state_<c>`` ([x, ẋ] of its entity) and ``task_<c>`` (a :class:`TaskCommand` or None: idle; must be
-    connected); outputs ``u_<c>`` (2), ``u_<c>_<member>`` (2, u_ℓ = cf_ℓ u) per team member and
-    ``estimates_<c>``.  An idle controller has zero dynamics and its law is not evaluated, so a derivative
-    evaluation costs one call for all controllers and computes only the active ones; a new episode resets a
-    controller's estimates to its task's m̂(0), α̂(0) at the start of the next step (one per-step unrestricted
-    update for all controllers, which leaves the context untouched when no episode changed).
+    Continuous state: [m̂, α̂] of every controller in :attr:`names` order (output ``estimates``).  Inputs per
+    controller ``c``: ``state_<c>`` ([x, ẋ] of its entity) and ``task_<c>`` (a :class:`TaskCommand` or None:
+    idle; must be connected).  Outputs: ``forces``, the input of every plant the controllers drive in
+    :attr:`names` order (u of a navigation controller, u_ℓ = cf_ℓ u of each member of a team, 2 entries
+    each; :attr:`force_slots` names them), and ``u``, the entity input u of every controller (2 entries each).
+
+    One cache entry evaluates the laws of all active controllers per context change (an idle controller's law
+    is not evaluated and its state input is never read); the outputs, the estimate derivatives and the faults
+    all read it, so a derivative evaluation of the closed loop evaluates each active law once.  A new episode
+    resets a controller's estimates to its task's m̂(0), α̂(0) at the start of the next step (one per-step
+    unrestricted update for all controllers, which leaves the context untouched when no episode changed).
     """
 
     def __init__(self, controllers: Sequence[tuple[str, Sequence[str]]], gains: AdaptiveGains,
@@ -185,6 +189,12 @@ class MissionControllers(LeafSystem):
             if len(set(m)) != len(m):
                 raise ValueError(f"members of {c} must be distinct, got {m}")
         self.bodies = [1 + len(self.members[c]) for c in self.names]
+        #: (controller, member or None) of every 2-entry slot of ``forces``
+        self.force_slots = [(c, n) for c in self.names for n in (self.members[c] or [None])]
+        self._force_at, at = [], 0
+        for c in self.names:
+            self._force_at.append(at)
+            at += 2 * max(1, len(self.members[c]))
         init = [v for b in self.bodies for v in gains.initial_estimates(b)]
         self.DeclareContinuousState(BasicVector(init))
         self.state_ports = {c: self.DeclareVectorInputPort(f"state_{c}", 4) for c in self.names}
@@ -196,21 +206,17 @@ class MissionControllers(LeafSystem):
         self._tasks = self.DeclareCacheEntry(
             "task commands", ValueProducer(allocate=lambda: AbstractValue.Make(None), calc=self._CalcTasks),
             prerequisites_of_calc={p.ticket() for p in self._task_list})
-        self._laws = [
-            self.DeclareCacheEntry(f"adaptive law of {c}",
-                                   ValueProducer(allocate=lambda: AbstractValue.Make(_ZERO), calc=self._law_calc(q)),
-                                   prerequisites_of_calc={self._state_list[q].ticket(), self._task_list[q].ticket(),
-                                                          self.xc_ticket()})
-            for q, c in enumerate(self.names)]
-        self.u_ports, self.member_u_ports, self.estimates_ports = {}, {}, {}
-        for q, c in enumerate(self.names):
-            pre = {self._laws[q].ticket(), self._task_list[q].ticket()}
-            self.u_ports[c] = self.DeclareVectorOutputPort(f"u_{c}", 2, self._u_calc(q), prerequisites_of_calc=pre)
-            self.member_u_ports[c] = [
-                self.DeclareVectorOutputPort(f"u_{c}_{n}", 2, self._member_calc(q, k), prerequisites_of_calc=pre)
-                for k, n in enumerate(self.members[c])]
-            self.estimates_ports[c] = self.DeclareVectorOutputPort(
-                f"estimates_{c}", 2, self._estimates_calc(q), prerequisites_of_calc={self.xc_ticket()})
+        self._new_episodes = self.DeclareCacheEntry(
+            "new episodes", ValueProducer(allocate=lambda: AbstractValue.Make(None), calc=self._CalcNewEpisodes),
+            prerequisites_of_calc={self._tasks.ticket(), self.discrete_state_ticket(self._episode_index)})
+        self._laws = self.DeclareCacheEntry(
+            "adaptive laws", ValueProducer(allocate=lambda: AbstractValue.Make(None), calc=self._CalcLaws),
+            prerequisites_of_calc={self._tasks.ticket(), self.xc_ticket()} | {p.ticket() for p in self._state_list})
+        laws = {self._laws.ticket()}
+        self.forces_port = self.DeclareVectorOutputPort("forces", 2 * len(self.force_slots), self.CalcForces,
+                                                        prerequisites_of_calc=laws)
+        self.u_port = self.DeclareVectorOutputPort("u", 2 * len(self.names), self.CalcU, prerequisites_of_calc=laws)
+        self.estimates_port = self.DeclareStateOutputPort("estimates", ContinuousStateIndex(0))
         self.DeclarePerStepUnrestrictedUpdateEvent(self._ResetOnNewTask)
 
     # ------------------------------------------------------------------ tasks
@@ -228,11 +234,16 @@ class MissionControllers(LeafSystem):
         cmd = self.command(context, controller)
         return None if cmd is None else cmd.task
 
-    def _ResetOnNewTask(self, context, state):
-        cmds, _, episodes = self._tasks.Eval(context)
+    def _CalcNewEpisodes(self, context, value):
+        episodes = self._tasks.Eval(context)[2]
         changed = np.flatnonzero(episodes != context.get_discrete_state(int(self._episode_index)).value())
-        if len(changed) == 0:
+        value.set_value(tuple(changed.tolist()))
+
+    def _ResetOnNewTask(self, context, state):
+        changed = self._new_episodes.Eval(context)
+        if not changed:
             return EventStatus.DidNothing()  # leaves the context (and its caches) untouched
+        cmds, _, episodes = self._tasks.Eval(context)
         est = context.get_continuous_state_vector().CopyToVector()
         for q in changed:
             if cmds[q] is not None:
@@ -254,58 +265,57 @@ class MissionControllers(LeafSystem):
         context.SetContinuousState(est)
 
     # ------------------------------------------------------------------ evaluation
-    def _law_calc(self, q: int):
-        def calc(context, value):
-            cmd = self._task_list[q].Eval(context)
-            if cmd is None:
-                value.set_value(_ZERO)
-                return
-            x0, x1, w0, w1 = self._state_list[q].Eval(context).tolist()
-            m_hat, alpha_hat = context.get_continuous_state_vector().value()[2 * q : 2 * q + 2].tolist()
-            value.set_value(cmd.task.evaluate_floats(x0, x1, w0, w1, m_hat, alpha_hat))
-        return calc
+    def _CalcLaws(self, context, value):
+        cmds, active, _ = self._tasks.Eval(context)
+        laws = [_ZERO] * len(self.names)
+        if active:
+            est = context.get_continuous_state_vector().value()
+            for q in active:
+                x0, x1, w0, w1 = self._state_list[q].Eval(context).tolist()
+                m_hat, alpha_hat = est[2 * q : 2 * q + 2].tolist()
+                laws[q] = cmds[q].task.evaluate_floats(x0, x1, w0, w1, m_hat, alpha_hat)
+        value.set_value((cmds, active, laws))
 
     def law(self, context, controller: str) -> ControlEval:
         """The cached evaluation of ``controller``'s law in ``context``."""
-        return self._laws[self.names.index(controller)].Eval(context)
+        return self._laws.Eval(context)[2][self.names.index(controller)]
 
     def fault(self, context, controller: str) -> str:
         """Why ``controller``'s law is undefined at the current state (empty while it is defined or idle)."""
-        if self.command(context, controller) is None:
-            return ""
         return self.law(context, controller).fault
 
     def first_fault(self, context) -> tuple[str, str] | None:
         """(controller, why) of the first active controller, in :attr:`names` order, whose law is undefined at
         the current state; None if there is none."""
-        for q in self._tasks.Eval(context)[1]:
-            why = self._laws[q].Eval(context).fault
-            if why:
-                return self.names[q], why
+        _, active, laws = self._laws.Eval(context)
+        for q in active:
+            if laws[q].fault:
+                return self.names[q], laws[q].fault
         return None
 
     def DoCalcTimeDerivatives(self, context, derivatives):
-        _, active, _ = self._tasks.Eval(context)
+        _, active, laws = self._laws.Eval(context)
         out = np.zeros(2 * len(self.names))
         for q in active:
-            ev = self._laws[q].Eval(context)
-            out[2 * q] = ev.m_hat_dot
-            out[2 * q + 1] = ev.alpha_hat_dot
+            ev = laws[q]
+            out[2 * q : 2 * q + 2] = ev.m_hat_dot, ev.alpha_hat_dot
         derivatives.SetFromVector(out)
 
-    def _u_calc(self, q: int):
-        def calc(context, output):
-            output.SetFromVector(self._laws[q].Eval(context).u)
-        return calc
+    def CalcForces(self, context, output):
+        cmds, active, laws = self._laws.Eval(context)
+        out = np.zeros(2 * len(self.force_slots))
+        for q in active:
+            u, at = laws[q].u, self._force_at[q]
+            if self.members[self.names[q]]:
+                for k, cf in enumerate(cmds[q].task.cf.tolist()):
+                    out[at + 2 * k : at + 2 * k + 2] = cf * u
+            else:
+                out[at : at + 2] = u
+        output.SetFromVector(out)
 
-    def _member_calc(self, q: int, k: int):
-        def calc(context, output):
-            cmd = self._task_list[q].Eval(context)
-            cf = cmd.task.cf[k] if cmd is not None else 0.0
-            output.SetFromVector(cf * self._laws[q].Eval(context).u)
-        return calc
-
-    def _estimates_calc(self, q: int):
-        def calc(context, output):
-            output.SetFromVector(context.get_continuous_state_vector().value()[2 * q : 2 * q + 2])
-        return calc
+    def CalcU(self, context, output):
+        _, active, laws = self._laws.Eval(context)
+        out = np.zeros(2 * len(self.names))
+        for q in active:
+            out[2 * q : 2 * q + 2] = laws[q].u
+        output.SetFromVector(out)

@@ -45,19 +45,22 @@ from mrodrake.ts import TransitionSystem
 # ------------------------------------------------------------------------------------------ logger
 class MissionLogger(LeafSystem):
     """Samples every entity's routed [x, ẋ] and every active controller's u, m̂, α̂ every ``period`` s
-    (periodic publish; the samples are kept in Python lists on this system, cleared by :meth:`clear`)."""
+    (periodic publish; the samples are kept in Python lists on this system, cleared by :meth:`clear`).
+
+    ``controllers``: name -> (entity, members) in the controllers' order.  Inputs: ``states``, ``u`` and
+    ``estimates`` (u and [m̂, α̂] of every controller in that order, 2 entries each) and ``tasks`` (every
+    controller's :class:`~mrodrake.execution.commands.TaskCommand` by name, None while idle)."""
 
     def __init__(self, entities, controllers, period: float):
         super().__init__()
         self.set_name("mission_logger")
         self.entities = list(entities)
         self.controllers = dict(controllers)  # name -> (entity, members)
+        n = len(self.controllers)
         self.states_port = self.DeclareVectorInputPort("states", 4 * len(self.entities))
-        self.u_ports, self.est_ports, self.task_ports = {}, {}, {}
-        for c in self.controllers:
-            self.u_ports[c] = self.DeclareVectorInputPort(f"u_{c}", 2)
-            self.est_ports[c] = self.DeclareVectorInputPort(f"est_{c}", 2)
-            self.task_ports[c] = self.DeclareAbstractInputPort(f"task_{c}", AbstractValue.Make(None))
+        self.u_port = self.DeclareVectorInputPort("u", 2 * n)
+        self.estimates_port = self.DeclareVectorInputPort("estimates", 2 * n)
+        self.tasks_port = self.DeclareAbstractInputPort("tasks", AbstractValue.Make({}))
         self.DeclarePeriodicPublishEvent(float(period), 0.0, self.Sample)
         self.clear()
 
@@ -73,16 +76,18 @@ class MissionLogger(LeafSystem):
             return EventStatus.DidNothing()
         self.times.append(t)
         self.states.append(np.array(self.states_port.Eval(context)))
-        for c, (entity, members) in self.controllers.items():
-            cmd = self.task_ports[c].Eval(context)
+        tasks = self.tasks_port.Eval(context)
+        u = est = None
+        for q, (c, (entity, members)) in enumerate(self.controllers.items()):
+            cmd = tasks.get(c)
             if cmd is None:
                 continue
-            u = self.u_ports[c].Eval(context)
-            m, a = self.est_ports[c].Eval(context)
-            self.signals.append((t, c, entity, float(u[0]), float(u[1]), float(m), float(a)))
+            if u is None:
+                u, est = self.u_port.Eval(context).tolist(), self.estimates_port.Eval(context).tolist()
+            u0, u1, m, a = u[2 * q], u[2 * q + 1], est[2 * q], est[2 * q + 1]
+            self.signals.append((t, c, entity, u0, u1, m, a))
             for k, r in enumerate(members):
-                self.signals.append((t, c, r, float(cmd.task.cf[k] * u[0]), float(cmd.task.cf[k] * u[1]), float(m),
-                                     float(a)))
+                self.signals.append((t, c, r, float(cmd.task.cf[k] * u0), float(cmd.task.cf[k] * u1), m, a))
         return EventStatus.Succeeded()
 
 
@@ -203,12 +208,12 @@ class Mission:
         entities = scenario.robot_names + scenario.object_names
         ctrl_info = {f"nav_{r}": (r, ()) for r in scenario.robot_names}
         ctrl_info.update({t.controller: (scenario.object_names[t.obj], t.members) for t in self.teams})
-        self.logger = b.AddSystem(MissionLogger(entities, ctrl_info, log_period))
+        self.logger = b.AddSystem(MissionLogger(entities, {c: ctrl_info[c] for c in self.controllers.names},
+                                                log_period))
         b.Connect(self.switches.states_port, self.logger.states_port)
-        for c in self.controllers.names:
-            b.Connect(self.controllers.u_ports[c], self.logger.u_ports[c])
-            b.Connect(self.controllers.estimates_ports[c], self.logger.est_ports[c])
-            b.Connect(self.supervisor.task_ports[c], self.logger.task_ports[c])
+        b.Connect(self.controllers.u_port, self.logger.u_port)
+        b.Connect(self.controllers.estimates_port, self.logger.estimates_port)
+        b.Connect(self.supervisor.tasks_port, self.logger.tasks_port)
         self.diagram = b.Build()
         self.diagram.set_name("mission")
 

@@ -230,17 +230,19 @@ class MissionPlants(LeafSystem):
     contact forces) and a team plant per (object, team) of the plan's transports (eq. (5)).
 
     Continuous state: [x, ẋ] of every plant in :attr:`names` order (robots, objects, teams), 4 entries each;
-    output ``state`` is all of it (a Demultiplexer gives each plant its own port).  Inputs: ``u_<robot>`` (2)
-    per robot, ``u_<team>_<member>`` (2) per team member, and an abstract ``sync_<plant>``
-    (:class:`~mrodrake.execution.commands.SyncCommand`) per plant, which must be connected.  Outputs
+    output ``state`` is all of it (a Demultiplexer gives each plant its own port).  Inputs: ``forces``, u of
+    every robot and then u_ℓ of every member of every team (2 entries each; :attr:`force_slots` names them,
+    robots as (robot, None) and members as (team, robot)), and an abstract ``sync_<plant>``
+    (:class:`~mrodrake.execution.commands.SyncCommand`) per plant; all must be connected.  Outputs
     ``member_<team>_<robot>`` = [x^o + offset_i, ẋ^o] per team member, with the grasp offsets of the team's
     sync command (the members' actual offsets at engagement).  Numeric parameter b is the true
     [mass, friction scale, friction frequency] of robot b, then of each object; a team plant uses those of
     its object and members.
 
-    A plant whose sync command is ``frozen`` is parked: zero dynamics, and its inputs are not evaluated, so a
-    derivative evaluation costs one call for all plants and computes only the moving ones.  A per-step
-    unrestricted update copies the commanded [x, ẋ] into a plant's state when its command's version changes.
+    A plant whose sync command is ``frozen`` is parked: zero dynamics, so a derivative evaluation costs one
+    call for all plants and computes only the moving ones (``forces`` is read only while a plant moves).  A
+    per-step unrestricted update copies the commanded [x, ẋ] into a plant's state when its command's version
+    changes.
     """
 
     def __init__(self, scenario: Scenario, teams: Sequence[tuple[str, int, Sequence[int]]] = (),
@@ -268,23 +270,25 @@ class MissionPlants(LeafSystem):
         for _, _, team in self.teams:
             if not team or len(set(team)) != len(team):
                 raise ValueError(f"a team needs distinct members, got {team}")
+        self.force_slots = [(r, None) for r in self.robot_names] + [
+            (t, self.robot_names[i]) for t, _, team in self.teams for i in team]
+        self._team_force_at, at = [], 2 * n_r
+        for _, _, team in self.teams:
+            self._team_force_at.append(at)
+            at += 2 * len(team)
         self.DeclareContinuousState(4 * len(self.names))
         self.state_port = self.DeclareStateOutputPort("state", ContinuousStateIndex(0))
-        self.u_ports = {r: self.DeclareVectorInputPort(f"u_{r}", 2) for r in self.robot_names}
-        self.team_u_ports = {t: [self.DeclareVectorInputPort(f"u_{t}_{self.robot_names[i]}", 2) for i in team]
-                             for t, _, team in self.teams}
+        self.forces_port = self.DeclareVectorInputPort("forces", 2 * len(self.force_slots))
         self.sync_ports = {p: self.DeclareAbstractInputPort(f"sync_{p}", AbstractValue.Make(SyncCommand()))
                            for p in self.names}
         self._sync_list = [self.sync_ports[p] for p in self.names]
-        self._robot_u = [self.u_ports[r] for r in self.robot_names]
-        self._team_u = [self.team_u_ports[t] for t, _, _ in self.teams]
         self._version_index = self.DeclareDiscreteState(np.full(len(self.names), -1.0))
         self._syncs = self.DeclareCacheEntry(
             "sync commands", ValueProducer(allocate=lambda: AbstractValue.Make(None), calc=self._CalcSyncs),
-            prerequisites_of_calc={p.ticket() for p in self._sync_list})
-        self._params = self.DeclareCacheEntry(
-            "body parameters", ValueProducer(allocate=lambda: AbstractValue.Make(None), calc=self._CalcParams),
-            prerequisites_of_calc={self.all_parameters_ticket()})
+            prerequisites_of_calc={p.ticket() for p in self._sync_list} | {self.all_parameters_ticket()})
+        self._new_versions = self.DeclareCacheEntry(
+            "new versions", ValueProducer(allocate=lambda: AbstractValue.Make(None), calc=self._CalcNewVersions),
+            prerequisites_of_calc={self._syncs.ticket(), self.discrete_state_ticket(self._version_index)})
         pre = {self.xc_ticket(), self._syncs.ticket()}
         self.member_ports = {t: [self.DeclareVectorOutputPort(f"member_{t}_{self.robot_names[i]}", 4,
                                                               self._member_out(q, k), prerequisites_of_calc=pre)
@@ -320,6 +324,7 @@ class MissionPlants(LeafSystem):
 
     # ------------------------------------------------------------------ sync commands
     def _CalcSyncs(self, context, value):
+        """(moving plants, versions, commands, every team's member offsets, every body's [m, scale, frequency])."""
         cmds = [p.Eval(context) for p in self._sync_list]
         moving = tuple(k for k, c in enumerate(cmds) if not c.frozen)
         versions = np.array([c.version for c in cmds], dtype=float)
@@ -328,13 +333,19 @@ class MissionPlants(LeafSystem):
         for q, (_, team) in enumerate(self._team_bodies):
             off = cmds[n_e + q].offsets
             offsets.append(np.asarray(off, dtype=float).reshape(len(team), 2) if len(off) else np.zeros((len(team), 2)))
-        value.set_value((moving, versions, cmds, offsets))
+        params = tuple(tuple(context.get_numeric_parameter(b).value().tolist()) for b in range(len(self._models)))
+        value.set_value((moving, versions, cmds, [o.tolist() for o in offsets], params, offsets))
+
+    def _CalcNewVersions(self, context, value):
+        versions = self._syncs.Eval(context)[1]
+        value.set_value(tuple(np.flatnonzero(versions != context.get_discrete_state(
+            int(self._version_index)).value()).tolist()))
 
     def _Sync(self, context, state):
-        _, versions, cmds, _ = self._syncs.Eval(context)
-        changed = np.flatnonzero(versions != context.get_discrete_state(int(self._version_index)).value())
-        if len(changed) == 0:
+        changed = self._new_versions.Eval(context)
+        if not changed:
             return EventStatus.DidNothing()
+        _, versions, cmds, _, _, _ = self._syncs.Eval(context)
         s = context.get_continuous_state_vector().CopyToVector()
         for k in changed:
             s[4 * k : 4 * k + 4] = np.concatenate([cmds[k].x, cmds[k].v])
@@ -343,23 +354,19 @@ class MissionPlants(LeafSystem):
         return EventStatus.Succeeded()
 
     # ------------------------------------------------------------------ dynamics
-    def _CalcParams(self, context, value):
-        value.set_value(tuple(tuple(context.get_numeric_parameter(b).value().tolist())
-                              for b in range(len(self._models))))
-
     def _body_friction(self, params, body: int, x0: float, x1: float, v0: float, v1: float
                        ) -> tuple[float, float, float]:
         m, scale, freq = params[body]
         return (m, *friction_xy(self._models[body], scale, freq, x0, x1, v0, v1))
 
-    def _acceleration(self, context, params, k: int, x0: float, x1: float, v0: float, v1: float,
-                      offsets) -> tuple[float, float]:
-        """ẍ of plant k on Python floats (the hot path of a mission); ``params``: [m, scale, frequency] per body."""
+    def _acceleration(self, params, k: int, x0: float, x1: float, v0: float, v1: float, offsets, forces
+                      ) -> tuple[float, float]:
+        """ẍ of plant k on Python floats (the hot path of a mission); ``params``: [m, scale, frequency] per body,
+        ``forces``: the ``forces`` input as a list."""
         n_r, n_e = len(self.robot_names), len(self.robot_names) + len(self.object_names)
         if k < n_r:  # robot: m ẍ + f = u
             m, f0, f1 = self._body_friction(params, k, x0, x1, v0, v1)
-            u0, u1 = self._robot_u[k].Eval(context).tolist()
-            return (u0 - f0) / m, (u1 - f1) / m
+            return (forces[2 * k] - f0) / m, (forces[2 * k + 1] - f1) / m
         if k < n_e:  # object without contact: m ẍ + f = 0
             m, f0, f1 = self._body_friction(params, k, x0, x1, v0, v1)
             return -f0 / m, -f1 / m
@@ -367,25 +374,26 @@ class MissionPlants(LeafSystem):
         obj, team = self._team_bodies[q]
         m_total, f0, f1 = self._body_friction(params, obj, x0, x1, v0, v1)
         u0 = u1 = 0.0
-        for (d0, d1), i, port in zip(offsets[q].tolist(), team, self._team_u[q]):
+        at = self._team_force_at[q]
+        for (d0, d1), i in zip(offsets[q], team):
             m_k, g0, g1 = self._body_friction(params, i, x0 + d0, x1 + d1, v0, v1)
             m_total += m_k
             f0 += g0
             f1 += g1
-            p0, p1 = port.Eval(context).tolist()
-            u0 += p0
-            u1 += p1
+            u0 += forces[at]
+            u1 += forces[at + 1]
+            at += 2
         return (u0 - f0) / m_total, (u1 - f1) / m_total
 
     def DoCalcTimeDerivatives(self, context, derivatives):
-        moving, _, _, offsets = self._syncs.Eval(context)
+        moving, _, _, offsets, params, _ = self._syncs.Eval(context)
         out = np.zeros(4 * len(self.names))  # SetFromVector takes an array faster than a list
         if moving:
-            s = context.get_continuous_state_vector().value()
-            params = self._params.Eval(context)
+            s = self.state_port.Eval(context)
+            forces = self.forces_port.Eval(context).tolist()
             for k in moving:
                 x0, x1, v0, v1 = s[4 * k : 4 * k + 4].tolist()
-                out[4 * k : 4 * k + 4] = (v0, v1, *self._acceleration(context, params, k, x0, x1, v0, v1, offsets))
+                out[4 * k : 4 * k + 4] = (v0, v1, *self._acceleration(params, k, x0, x1, v0, v1, offsets, forces))
         derivatives.SetFromVector(out)
 
     def _member_out(self, q: int, k: int):
@@ -393,6 +401,6 @@ class MissionPlants(LeafSystem):
 
         def calc(context, output):
             s = context.get_continuous_state_vector().CopyToVector()[b : b + 4]
-            s[:2] += self._syncs.Eval(context)[3][q][k]
+            s[:2] += self._syncs.Eval(context)[5][q][k]
             output.SetFromVector(s)
         return calc

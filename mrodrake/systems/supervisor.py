@@ -24,7 +24,8 @@ from mrodrake.execution.sequencer import ExecState, Sequencer, Status
 
 class Supervisor(LeafSystem):
     """Input ``states`` ([x, ẋ] of every entity, robots then objects, 4 entries each); abstract outputs
-    ``task_<controller>``, ``sync_<plant>`` and ``select_<entity>``.  ``route_ports[(entity, team plant)]`` is
+    ``task_<controller>``, ``tasks`` (all of them, by controller name), ``sync_<plant>`` and
+    ``select_<entity>``.  ``route_ports[(entity, team plant)]`` is
     the index of the switch input that carries the entity's state from that team plant (1: its own plant)."""
 
     def __init__(self, sequencer: Sequencer, route_ports: Mapping[tuple[str, str], int], period: float = 0.5):
@@ -39,6 +40,8 @@ class Supervisor(LeafSystem):
         self.task_ports = {c: self.DeclareAbstractOutputPort(
             f"task_{c}", lambda: AbstractValue.Make(None), self._TaskCalc(c), prerequisites_of_calc=tick)
             for c in sequencer.controllers}
+        self.tasks_port = self.DeclareAbstractOutputPort("tasks", lambda: AbstractValue.Make({}), self._TasksCalc,
+                                                         prerequisites_of_calc=tick)
         self.sync_ports = {p: self.DeclareAbstractOutputPort(
             f"sync_{p}", lambda: AbstractValue.Make(SyncCommand()), self._SyncCalc(p), prerequisites_of_calc=tick)
             for p in sequencer.plants}
@@ -55,6 +58,9 @@ class Supervisor(LeafSystem):
         def calc(context, value):
             value.set_value(self.exec_state(context).tasks[c])
         return calc
+
+    def _TasksCalc(self, context, value):
+        value.set_value(self.exec_state(context).tasks)
 
     def _SyncCalc(self, p: str):
         def calc(context, value):

@@ -156,9 +156,9 @@ def test_mission_plants_compute_the_single_plants(case1):
     s = rng.uniform(-5.0, 5.0, 4 * len(names))
     ctx.SetContinuousState(s)
     u_r2, u_team = np.array([1.0, -2.0]), [np.array([0.5, 0.25]), np.array([-1.5, 2.0])]
-    plants.u_ports["r2"].FixValue(ctx, u_r2)  # the parked robots' inputs stay unconnected: never evaluated
-    for port, u in zip(plants.team_u_ports["o2_r1+r3"], u_team):
-        port.FixValue(ctx, u)
+    assert plants.force_slots == [("r1", None), ("r2", None), ("r3", None), ("o2_r1+r3", "r1"), ("o2_r1+r3", "r3")]
+    # the parked robots' forces are NaN: a parked plant never reads its force
+    plants.forces_port.FixValue(ctx, np.concatenate([[np.nan, np.nan], u_r2, [np.nan, np.nan], *u_team]))
     xdot = plants.EvalTimeDerivatives(ctx).CopyToVector().reshape(-1, 4)
     for k in (0, 2, 4):
         np.testing.assert_array_equal(xdot[k], 0.0)
@@ -201,10 +201,7 @@ def test_mission_plants_sync_on_a_new_version(case1):
 
 def test_mission_plant_states_do_not_feed_through_the_forces(case1):
     plants = MissionPlants(case1, [("o1_r1+r2", 0, (0, 1))])
-    forces = [plants.u_ports[r].get_index() for r in plants.robot_names]
-    forces += [p.get_index() for p in plants.team_u_ports["o1_r1+r2"]]
-    for i in forces:
-        for o in range(plants.num_output_ports()):
-            assert not plants.HasDirectFeedthrough(int(i), o)
+    for o in range(plants.num_output_ports()):
+        assert not plants.HasDirectFeedthrough(int(plants.forces_port.get_index()), o)
     with pytest.raises(ValueError):
         MissionPlants(case1, [("o1_r1+r1", 0, (0, 0))])

@@ -249,19 +249,23 @@ def test_mission_controllers_compute_the_single_controllers(room_task):
     nav = NavigationController(room_task)
     nc = nav.CreateDefaultContext()
     nav.state_port.FixValue(nc, s_a)
-    np.testing.assert_array_equal(bank.u_ports["nav_a"].Eval(ctx), nav.u_port.Eval(nc))
+    u, forces = bank.u_port.Eval(ctx), bank.forces_port.Eval(ctx)
+    assert bank.force_slots == [("nav_a", None), ("nav_b", None), ("ab_ctrl", "a"), ("ab_ctrl", "b")]
+    np.testing.assert_array_equal(u[0:2], nav.u_port.Eval(nc))
+    np.testing.assert_array_equal(forces[0:2], nav.u_port.Eval(nc))
     np.testing.assert_array_equal(rates[0:2], nav.EvalTimeDerivatives(nc).CopyToVector())
-    np.testing.assert_array_equal(bank.u_ports["nav_b"].Eval(ctx), 0.0)
+    np.testing.assert_array_equal(u[2:4], 0.0)
+    np.testing.assert_array_equal(forces[2:4], 0.0)
     np.testing.assert_array_equal(rates[2:4], 0.0)
     team = TransportController(["a", "b"], team_task)
     tc = team.CreateDefaultContext()
     team.state_port.FixValue(tc, s_t)
     team.set_estimates(tc, 1.5, 2.5)
     np.testing.assert_array_equal(rates[4:6], team.EvalTimeDerivatives(tc).CopyToVector())
+    np.testing.assert_array_equal(u[4:6], team.u_port.Eval(tc))
     for k in range(2):
-        np.testing.assert_array_equal(bank.member_u_ports["ab_ctrl"][k].Eval(ctx),
-                                      team.member_u_ports[k].Eval(tc))
-    np.testing.assert_array_equal(bank.estimates_ports["ab_ctrl"].Eval(ctx), [1.5, 2.5])
+        np.testing.assert_array_equal(forces[4 + 2 * k : 6 + 2 * k], team.member_u_ports[k].Eval(tc))
+    np.testing.assert_array_equal(bank.estimates_port.Eval(ctx)[4:6], [1.5, 2.5])
     assert bank.fault(ctx, "nav_b") == "" and bank.fault(ctx, "nav_a") == nav.fault(nc) == ""
     assert bank.first_fault(ctx) is None
     past_pole = local_task([5.0, 0.0], [[2.5, 1.5]], [1.0], [0.0, 0.0], 8.0, gains, k1=0.25, k2=5.0, cf=2,
@@ -271,8 +275,8 @@ def test_mission_controllers_compute_the_single_controllers(room_task):
     name, why = bank.first_fault(ctx)
     assert name == "ab_ctrl" and why == bank.fault(ctx, "ab_ctrl") != ""
     for c in bank.names:
-        for o in (bank.estimates_ports[c].get_index(),):
-            assert not bank.HasDirectFeedthrough(int(bank.state_ports[c].get_index()), int(o))
+        assert not bank.HasDirectFeedthrough(int(bank.state_ports[c].get_index()),
+                                             int(bank.estimates_port.get_index()))
 
 
 def test_mission_controllers_reset_only_on_a_new_episode(room_task):
