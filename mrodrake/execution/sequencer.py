@@ -94,10 +94,13 @@ PREFETCH_AHEAD = 2
 #: Period (s) at which motions waiting for a corridor ask again while no job ends (concurrent execution): the
 #: running motions have moved on, and corridors drawn again from where they are may leave room for them.
 REGRANT_PERIOD = 10.0
-#: Distance (m) to its planned spot within which a parked entity is a hole of a motion's map as its planned
-#: spot with the radius grown by this much (:meth:`Sequencer._map_disks`): navigations and transports end
-#: within GOAL_TOL of theirs, dockings and back-offs within DOCK_TOL.
+#: Distance (m) to its planned spot within which a parked object is a hole of a motion's map as its planned
+#: spot with the radius grown by this much (:meth:`Sequencer._map_disks`): transports end within GOAL_TOL.
 PARK_TOL = GOAL_TOL
+#: The same for a parked robot: navigations end within GOAL_TOL of their spots and back-offs within DOCK_TOL,
+#: and a robot docked to an object sits within DOCK_TOL of its slot next to an object within GOAL_TOL of its
+#: own spot.
+ROBOT_PARK_TOL = GOAL_TOL + DOCK_TOL
 
 
 class Phase(Enum):
@@ -682,18 +685,19 @@ class Sequencer:
         return out
 
     def _map_disks(self, X: np.ndarray, movers: set[int], planned: np.ndarray) -> list[Disk]:
-        """The entities other than ``movers`` as holes of a motion's map: one within PARK_TOL of its planned
-        spot (``planned``) as that spot with its radius grown by PARK_TOL, a disk that contains it and does
-        not depend on where within that it stopped (so the map can be built before it has); any other at its
-        actual disk."""
+        """The entities other than ``movers`` as holes of a motion's map: one within its parking tolerance
+        (ROBOT_PARK_TOL for a robot, PARK_TOL for an object) of its planned spot (``planned``) as that spot with
+        its radius grown by the tolerance, a disk that contains it and does not depend on where within that it
+        stopped (so the map can be built before it has); any other at its actual disk."""
         out = []
         for e in range(len(self.entities)):
             if e in movers:
                 continue
             x, p, r = X[e, :2], planned[e], float(self.radii[e])
-            near = math.hypot(x[0] - p[0], x[1] - p[1]) <= PARK_TOL
+            tol = ROBOT_PARK_TOL if e < self.N else PARK_TOL
+            near = math.hypot(x[0] - p[0], x[1] - p[1]) <= tol
             c = (float(p[0]), float(p[1])) if near else (float(x[0]), float(x[1]))
-            out.append(Disk(self.entities[e], c, r + PARK_TOL if near else r))
+            out.append(Disk(self.entities[e], c, r + tol if near else r))
         return out
 
     def _map_radius(self, entity: int, team: Sequence[int], radius: float) -> float:
@@ -836,9 +840,9 @@ class Sequencer:
     def _prefetch(self, ed: _Edit, X: np.ndarray) -> None:
         """Ask the map worker (:mod:`mrodrake.control.mapworker`) for the maps of the run's next
         :data:`PREFETCH_AHEAD` navigations and transports, each on the free space :meth:`_motion_free_space`
-        will give it if every entity that moves before it stops within PARK_TOL of its planned spot and docked
-        members make a team radius no larger than planned (those parked now stay where they are).  A wrong
-        guess costs a map nobody takes."""
+        will give it if every entity that moves before it stops within its parking tolerance of its planned
+        spot and docked members make a team radius no larger than planned (those parked now stay where they
+        are).  A wrong guess costs a map nobody takes."""
         if not self.prefetch or self.execution is not Execution.SEQUENTIAL:
             return
         uid = ed.active.uid
