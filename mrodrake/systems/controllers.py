@@ -172,7 +172,9 @@ class MissionControllers(LeafSystem):
 
     One cache entry evaluates the laws of all active controllers per context change (an idle controller's law
     is not evaluated and its state input is never read); the outputs, the estimate derivatives and the faults
-    all read it, so a derivative evaluation of the closed loop evaluates each active law once.  A new episode
+    all read it, so a derivative evaluation of the closed loop evaluates each active law once.  Every
+    evaluation that finds a law undefined also raises :attr:`fault_seen` (on the system, not in a context),
+    so a monitor need not evaluate the laws again after every step to notice a fault.  A new episode
     resets a controller's estimates to its task's m̂(0), α̂(0) at the start of the next step (one per-step
     unrestricted update for all controllers, which leaves the context untouched when no episode changed).
     """
@@ -189,6 +191,8 @@ class MissionControllers(LeafSystem):
             if len(set(m)) != len(m):
                 raise ValueError(f"members of {c} must be distinct, got {m}")
         self.bodies = [1 + len(self.members[c]) for c in self.names]
+        #: Set by every evaluation of the laws that finds one undefined (cleared by whoever reads it).
+        self.fault_seen = False
         #: (controller, member or None) of every 2-entry slot of ``forces``
         self.force_slots = [(c, n) for c in self.names for n in (self.members[c] or [None])]
         self._force_at, at = [], 0
@@ -273,7 +277,9 @@ class MissionControllers(LeafSystem):
             for q in active:
                 x0, x1, w0, w1 = self._state_list[q].Eval(context).tolist()
                 m_hat, alpha_hat = est[2 * q : 2 * q + 2].tolist()
-                laws[q] = cmds[q].task.evaluate_floats(x0, x1, w0, w1, m_hat, alpha_hat)
+                laws[q] = ev = cmds[q].task.evaluate_floats(x0, x1, w0, w1, m_hat, alpha_hat)
+                if ev.fault:
+                    self.fault_seen = True
         value.set_value((cmds, active, laws))
 
     def law(self, context, controller: str) -> ControlEval:

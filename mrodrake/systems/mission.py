@@ -290,14 +290,20 @@ class Mission:
 
     def _Monitor(self, root_context):
         """Simulator monitor, after every integration step: a stop request, or a fault of an active controller
-        (its state left the free set or the map's domain; Drake would otherwise shrink the next step forever
-        on its NaN derivatives), ends ``AdvanceTo``; progress is reported per completed plan step."""
+        (its state left the free set or the map's domain, where the law only damps the entity's velocity),
+        ends ``AdvanceTo``; progress is reported per completed plan step.  The laws are evaluated at the step's
+        end only after an evaluation during the step found one undefined
+        (:attr:`~mrodrake.systems.controllers.MissionControllers.fault_seen`): every step starts with an
+        evaluation at the state the last one ended in, so a faulty state ends the mission one step later at the
+        latest, and steps without a fault cost no extra evaluation."""
         if self._stop:
             return EventStatus.ReachedTermination(self.diagram, "stopped by the user")
-        fault = self.controllers.first_fault(self.controllers.GetMyContextFromRoot(root_context))
-        if fault is not None:
-            self._fault = f"controller fault of {fault[0]}: {fault[1]}"
-            return EventStatus.ReachedTermination(self.diagram, self._fault)
+        if self.controllers.fault_seen:
+            self.controllers.fault_seen = False
+            fault = self.controllers.first_fault(self.controllers.GetMyContextFromRoot(root_context))
+            if fault is not None:
+                self._fault = f"controller fault of {fault[0]}: {fault[1]}"
+                return EventStatus.ReachedTermination(self.diagram, self._fault)
         if self._progress is not None:
             st = self.supervisor.exec_state(self.supervisor.GetMyContextFromRoot(root_context))
             done = self.sequencer.steps_done(st)
