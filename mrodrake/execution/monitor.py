@@ -1,4 +1,4 @@
-"""The monitored NBA run on the executed word (pure Python, no Drake).
+"""The monitored NBA run on the executed word (no Drake).
 
 :class:`WordMonitor` reads the word that execution actually produces, in the way the planners assumed
 (:mod:`mrodrake.planning.semantics`): it tracks in which region every body's ball lies (or none), splits
@@ -12,20 +12,36 @@ re-entering a region), since it reads whatever happened.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
+from numba import njit
 
 from mrodrake.planning.semantics import ExecutedWords
 
 
 def entity_regions(centers: np.ndarray, radii: np.ndarray, positions: np.ndarray, region_radii: np.ndarray,
                    tol: float = 1e-9) -> np.ndarray:
-    """Region index of every entity whose ball B̄(x_e, r_e) lies in a region (−1: in none)."""
-    d = np.hypot(positions[:, None, 0] - centers[None, :, 0], positions[:, None, 1] - centers[None, :, 1])
-    inside = d + radii[:, None] <= region_radii[None, :] + tol
-    return np.where(inside.any(axis=1), inside.argmax(axis=1), -1)
+    """Region index of every entity whose ball B̄(x_e, r_e) lies in a region (−1: in none; the first such region
+    if several)."""
+    positions = np.asarray(positions, dtype=float)
+    out = np.empty(len(positions), dtype=np.int64)
+    _regions(np.asarray(centers, dtype=float), np.asarray(radii, dtype=float), positions,
+             np.asarray(region_radii, dtype=float), float(tol), out)
+    return out
+
+
+@njit(cache=True, nogil=True)
+def _regions(centers, radii, positions, region_radii, tol, out):
+    for e in range(positions.shape[0]):
+        out[e] = -1
+        for k in range(centers.shape[0]):
+            if math.hypot(positions[e, 0] - centers[k, 0], positions[e, 1] - centers[k, 1]) + radii[e] \
+                    <= region_radii[k] + tol:
+                out[e] = k
+                break
 
 
 def label_of(regions: Sequence[int], K: int) -> int:
@@ -80,6 +96,8 @@ class WordMonitor:
         """Read the change from the last observation to ``regions``; returns the crossings in reading
         order.  The run may become empty (the executed word left the task)."""
         new = [int(k) for k in regions]
+        if new == self.regions:
+            return []
         events = []
         for e, (a, b) in enumerate(zip(self.regions, new)):
             if a == b:

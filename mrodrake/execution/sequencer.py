@@ -344,7 +344,7 @@ class Sequencer:
         ed = _Edit(st)
         ed.t = t
         try:
-            if not np.all(np.isfinite(X)):
+            if not np.isfinite(X).all():
                 raise _Failure(f"non-finite entity state at t={t:.2f}")
             self._monitor(ed, t, X)
             if self.execution is Execution.CONCURRENT:
