@@ -104,7 +104,7 @@ def run_plan_benchmark(stream=sys.stdout, seeds: int = 3, horizon: float = 30.0,
             bound = k ** (n + m) * (m + 1) ** n
             row = {"N": n, "M": m, "K": k, "seed": seed, "ts_bound": bound, "nba_states": nba.num_states}
             try:
-                first = Stylus(ts, nba, rel, seed=seed).run(1, time_limit=generated_limit, stop_at_first=True)
+                first = Stylus(ts, nba, rel, seed=seed).run(10**9, time_limit=generated_limit, stop_at_first=True)
                 res = Stylus(ts, nba, rel, seed=seed).run(10**9, time_limit=generated_seconds)
                 row.update(first_seconds=first.stats["first_plan_seconds"], first_cost=first.history[0][2],
                            final_cost=res.history[-1][2], iterations=res.stats["iterations"])
