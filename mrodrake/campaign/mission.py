@@ -111,8 +111,8 @@ def execute(task: MissionTask) -> dict:
             stopped.set()
             mission.request_stop()
 
-        if task.inject == "slow":  # simulated time at most 5x wall time: a mission that outlives its soft limit
-            mission.simulator.set_target_realtime_rate(5.0)
+        if task.inject == "slow":  # simulated time at most wall time: a mission that outlives its soft limit
+            mission.simulator.set_target_realtime_rate(1.0)
         elapsed = time.perf_counter() - t0 if task.dispatched is None else time.time() - task.dispatched
         timer = threading.Timer(max(0.0, task.time_limit - elapsed), stop)
         timer.daemon = True
