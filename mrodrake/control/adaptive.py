@@ -307,7 +307,7 @@ class ControlEval(NamedTuple):
     brake −:data:`FAULT_DAMPING` ẋ: finite (Drake accepts steps with a NaN error estimate and shrinks the next
     step forever on a NaN derivative at its start), but a jump that makes an error-controlled integrator
     reject a trial step that gets there.  A step that still *ends* there is caught by the mission's monitor,
-    which ends the primitive right after it (the controller system's ``fault``).
+    which ends the primitive after that step or the next (the controller system's ``fault``).
     """
 
     u: np.ndarray  # entity input (2,)
