@@ -193,3 +193,28 @@ def test_a_tick_that_changes_nothing_returns_the_state_itself(tiny):
     moved = seq.tick(st, t + 1.5, _kinematic(seq, st, X))  # at rest at the end of its leg: the next leg or done
     assert moved is not st
     assert moved.active is not st.active or len(moved.primitives) == len(st.primitives) + 1
+
+
+def test_a_parked_entity_is_a_hole_at_its_planned_spot_within_its_parking_tolerance(tiny):
+    """A robot (docked robots sit within the docking tolerance of slots beside objects within the goal
+    tolerance) counts at its planned spot grown by ROBOT_PARK_TOL while within that of it, an object by
+    PARK_TOL; farther off, either is its actual disk."""
+    from mrodrake.execution.sequencer import DOCK_TOL, GOAL_TOL, PARK_TOL, ROBOT_PARK_TOL
+
+    sc, plan, words, placement = tiny
+    seq = Sequencer(sc, plan.ts, words, placement, couplings_of(plan), prefetch=False)
+    assert ROBOT_PARK_TOL == pytest.approx(GOAL_TOL + DOCK_TOL) and PARK_TOL == GOAL_TOL
+    planned = np.asarray(placement.initial, dtype=float)
+    robot, obj = 0, seq.N
+    for off, robot_near, obj_near in ((0.9 * PARK_TOL, True, True), (0.5 * (PARK_TOL + ROBOT_PARK_TOL), True, False),
+                                      (1.1 * ROBOT_PARK_TOL, False, False)):
+        X = np.zeros((len(seq.entities), 4))
+        X[:, :2] = planned + [off, 0.0]
+        disks = {d.name: d for d in seq._map_disks(X, set(), planned)}
+        for e, near, tol in ((robot, robot_near, ROBOT_PARK_TOL), (obj, obj_near, PARK_TOL)):
+            d, r = disks[seq.entities[e]], float(seq.radii[e])
+            if near:
+                assert np.allclose(d.center, planned[e]) and d.radius == pytest.approx(r + tol)
+                assert np.hypot(*(X[e, :2] - planned[e])) + r <= d.radius + 1e-12  # contains the actual disk
+            else:
+                assert np.allclose(d.center, X[e, :2]) and d.radius == pytest.approx(r)
