@@ -94,6 +94,9 @@ PREFETCH_AHEAD = 2
 #: Period (s) at which motions waiting for a corridor ask again while no job ends (concurrent execution): the
 #: running motions have moved on, and corridors drawn again from where they are may leave room for them.
 REGRANT_PERIOD = 10.0
+#: Halvings of the grid step a window's grid path may take (:func:`~mrodrake.control.windows.grid_path`): the
+#: TS lets a team through a door whose centre channel is a few centimetres wide, narrower than the grid step.
+GRID_HALVINGS = 2
 #: Distance (m) to its planned spot within which a parked entity is a hole of a motion's map as its planned
 #: spot with the radius grown by this much (:meth:`Sequencer._map_disks`): navigations and transports end
 #: within GOAL_TOL of theirs, dockings and back-offs within DOCK_TOL.
@@ -916,7 +919,7 @@ class Sequencer:
             if around_goal:
                 window, pw = goal_window_free_space(free, x, m.goal)
             else:
-                window, pw = window_free_space(free, x, grid_path(free.polygon, x, m.goal))
+                window, pw = window_free_space(free, x, grid_path(free.polygon, x, m.goal, halvings=GRID_HALVINGS))
             task = build_task(self.scenario, window, max(1, len(m.team)),
                               label=f"{self.entities[m.entity]} {m.kind.value} {'goal ' * around_goal}window",
                               pw_map=pw)
