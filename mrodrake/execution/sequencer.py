@@ -80,6 +80,10 @@ GOAL_TOL = 0.05
 #: dock and stop within DOCK_TOL and GOAL_TOL of their planned points, so a gap that placement checked at the full
 #: clearance can be a few cm narrower (a release on a generated office task: a 0.10 m gap beside a member robot).
 LOCAL_NARROW = 2
+#: Halvings of the grid step a window's grid path may take (:func:`~mrodrake.control.windows.grid_path`) where
+#: no other task can be built: the TS lets a team through a door whose centre channel is a few centimetres wide,
+#: narrower than the grid step (a finer grid over a whole 80 m floor costs seconds, so only there).
+GRID_HALVINGS = 2
 #: Distance (m) to a waypoint of a local motion at which its next leg starts.
 LEG_TOL = 0.25 * PATH_CLEARANCE
 #: Width (m) of the approach ring around a region (less where walls, obstacles or other regions are nearer
@@ -94,10 +98,6 @@ PREFETCH_AHEAD = 2
 #: Period (s) at which motions waiting for a corridor ask again while no job ends (concurrent execution): the
 #: running motions have moved on, and corridors drawn again from where they are may leave room for them.
 REGRANT_PERIOD = 10.0
-#: Halvings of the grid step a window's grid path may take (:func:`~mrodrake.control.windows.grid_path`) where
-#: no other task can be built: the TS lets a team through a door whose centre channel is a few centimetres wide,
-#: narrower than the grid step (a finer grid over a whole 80 m floor costs seconds, so only there).
-GRID_HALVINGS = 2
 #: Distance (m) to its planned spot within which a parked entity is a hole of a motion's map as its planned
 #: spot with the radius grown by this much (:meth:`Sequencer._map_disks`): navigations and transports end
 #: within GOAL_TOL of theirs, dockings and back-offs within DOCK_TOL.
