@@ -102,22 +102,26 @@ def point_resolution(pw_map, x) -> float:
 
 
 def grid_path(poly: Polygon, start, goal, step: float = GRID_STEP,
-              clearances: tuple[float, ...] = GRID_CLEARANCES) -> np.ndarray:
+              clearances: tuple[float, ...] = GRID_CLEARANCES, halvings: int = 0) -> np.ndarray:
     """A shortest 8-connected grid path (spacing ``step``) from ``start`` to ``goal`` through the points of
     ``poly`` at least the first of ``clearances`` from its boundary that connects them, start and goal
     included: waypoints (k, 2).  The start and the goal join the grid at the nearest node that a straight
     segment inside ``poly`` reaches (within ``clearance`` + 2 steps; else the next clearance is tried), so that
-    every leg of the path lies in ``poly``.  Raises ValueError if the grid does not connect them."""
+    every leg of the path lies in ``poly``.  Where no clearance connects them, the grid of half the step is
+    tried, up to ``halvings`` times (a channel of ``poly`` narrower than the step, such as a door a team just
+    fits through, may fall between two grid rows).  Raises ValueError if no grid connects them."""
     s = np.asarray(start, dtype=float).reshape(2)
     g = np.asarray(goal, dtype=float).reshape(2)
     shapely.prepare(poly)
-    for clear in clearances:
-        inner = poly.buffer(-clear) if clear > 0.0 else poly
-        if inner.is_empty:
-            continue
-        path = _grid_path(poly, inner, s, g, step, clear + 2.0 * step)
-        if path is not None:
-            return path
+    for h in range(halvings + 1):
+        size = step / 2 ** h
+        for clear in clearances:
+            inner = poly.buffer(-clear) if clear > 0.0 else poly
+            if inner.is_empty:
+                continue
+            path = _grid_path(poly, inner, s, g, size, clear + 2.0 * size)
+            if path is not None:
+                return path
     raise ValueError("grid path: the grid does not connect the start and the goal")
 
 

@@ -80,6 +80,10 @@ GOAL_TOL = 0.05
 #: dock and stop within DOCK_TOL and GOAL_TOL of their planned points, so a gap that placement checked at the full
 #: clearance can be a few cm narrower (a release on a generated office task: a 0.10 m gap beside a member robot).
 LOCAL_NARROW = 2
+#: Halvings of the grid step a window's grid path may take (:func:`~mrodrake.control.windows.grid_path`) where
+#: no other task can be built: the TS lets a team through a door whose centre channel is a few centimetres wide,
+#: narrower than the grid step (a finer grid over a whole 80 m floor costs seconds, so only there).
+GRID_HALVINGS = 2
 #: Distance (m) to a waypoint of a local motion at which its next leg starts.
 LEG_TOL = 0.25 * PATH_CLEARANCE
 #: Width (m) of the approach ring around a region (less where walls, obstacles or other regions are nearer
@@ -890,7 +894,8 @@ class Sequencer:
         it (corridor map, a team's goal at the corridor's end: ‖χ‖ = 0.99887 > ρ₀ = 0.99523); on a window,
         whose boundary is tens of metres instead of hundreds, the same dead end gets a larger share.  Where no
         task can be built on the map of the whole motion either, the law runs on the window around the goal if
-        there is one, else the motion fails."""
+        there is one, else on a window whose grid path takes finer steps (a hall behind a door the team just fits
+        through, which the map squeezes against its circle), else the motion fails."""
         free, pw = m.world
         x = X[m.entity, :2].copy()
         free = replace(free, start=x)
@@ -903,14 +908,16 @@ class Sequencer:
         try:
             task = build_task(self.scenario, free, max(1, len(m.team)), label=f"{name} {m.kind.value}", pw_map=pw)
         except (UserError, ValueError) as exc:
-            windowed = self._window(ed, x, m, free, around_goal=True)
+            windowed = (self._window(ed, x, m, free, around_goal=True)
+                        or self._window(ed, x, m, free, halvings=GRID_HALVINGS))
             if windowed is not None:
                 return windowed
             raise _Failure(f"{m.kind.value} of {name}: {str(exc).splitlines()[0]}") from None
         ed.tasks[m.controller] = TaskCommand(task, m.episode)
         return replace(m, task=task, free=free, waypoint=None, spans=(*m.spans, (ed.t, free)))
 
-    def _window(self, ed: _Edit, x: np.ndarray, m: Motion, free, around_goal: bool = False) -> Motion | None:
+    def _window(self, ed: _Edit, x: np.ndarray, m: Motion, free, around_goal: bool = False,
+                halvings: int = 0) -> Motion | None:
         """The law on the map of the window around ``x`` toward its waypoint, or (``around_goal``) on the map of
         the window around the goal (:func:`~mrodrake.control.windows.goal_window_free_space`: a goal in a pocket
         that is narrow for the entity, between parked entities and a wall, which neither the map of the whole
@@ -920,7 +927,7 @@ class Sequencer:
             if around_goal:
                 window, pw = goal_window_free_space(free, x, m.goal)
             else:
-                window, pw = window_free_space(free, x, grid_path(free.polygon, x, m.goal))
+                window, pw = window_free_space(free, x, grid_path(free.polygon, x, m.goal, halvings=halvings))
             task = build_task(self.scenario, window, max(1, len(m.team)),
                               label=f"{self.entities[m.entity]} {m.kind.value} {'goal ' * around_goal}window",
                               pw_map=pw)

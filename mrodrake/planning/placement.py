@@ -998,60 +998,68 @@ class _Placer:
             if not everyone:
                 continue
             seated = self.seated(state, k)
-            ents = [e for e in everyone if e not in seated]
-            radii = []
-            for e in ents:
-                nxt = self.next_team(e - N, 0) if e >= N else None
-                radii.append(self.ts.covering_radius(e - N, nxt) if nxt else float(self.radii[e]))
-            future = max((self.future_units(w, -1, k, e) for e in ents if e >= N), default=[],
-                         key=lambda u: sum(x * x for x in u))
-            if any((e, -1) in self.hints for e in everyone):  # learned: one entity after the other, hints kept
-                order = sorted(range(len(ents)), key=lambda n: -radii[n])
-                cs, rs = [], []
-                for n in order:
-                    p = self.spot(k, radii[n], cs, rs, self.hints.get((ents[n], -1), []))
-                    if p is None:
-                        need = self.taught_by.get((ents[n], -1))
-                        later = "later steps need" if need is None else f"step {need.index} needs"
-                        raise PlacementError(f"initial state: region '{self.ts.region_names[k]}': no layout "
-                                             f"keeps the room {later}", need, k)
-                    pos[ents[n]] = p
-                    cs.append(p)
-                    rs.append(radii[n])
-                for j in sorted(set(seated.values())):
-                    self.seat(pos, k, j, seated)
-                continue
-            sol = None
-            for n in range(len(future), -1, -1):
-                for attempt in range(SEEDS if n == 0 else 2):
-                    sol = self.place_in(k, radii + future[:n], [], [], attempt)
-                    if sol is not None:
-                        sol = sol[: len(radii)]
-                        break
-                if sol is not None:
+            while True:  # a robot of an object whose team disk is dropped is placed on its own, not seated
+                ents = [e for e in everyone if e not in seated]
+                radii = []
+                for e in ents:
+                    nxt = self.next_team(e - N, 0) if e >= N else None
+                    radii.append(self.ts.covering_radius(e - N, nxt) if nxt else float(self.radii[e]))
+                future = max((self.future_units(w, -1, k, e) for e in ents if e >= N), default=[],
+                             key=lambda u: sum(x * x for x in u))
+                if any((e, -1) in self.hints for e in everyone):  # learned: one entity after the other, hints kept
+                    order = sorted(range(len(ents)), key=lambda n: -radii[n])
+                    cs, rs = [], []
+                    for n in order:
+                        p = self.spot(k, radii[n], cs, rs, self.hints.get((ents[n], -1), []))
+                        if p is None:
+                            need = self.taught_by.get((ents[n], -1))
+                            later = "later steps need" if need is None else f"step {need.index} needs"
+                            raise PlacementError(f"initial state: region '{self.ts.region_names[k]}': no layout "
+                                                 f"keeps the room {later}", need, k)
+                        pos[ents[n]] = p
+                        cs.append(p)
+                        rs.append(radii[n])
+                    for j in sorted(set(seated.values())):
+                        self.seat(pos, k, j, seated)
+                    sol = None
                     break
-            # teams that form one after another need not all fit at once: reserve the disks of the objects
-            # grasped first only (each later grasp checks its disk when it forms)
-            later = sorted((n for n, e in enumerate(ents) if e >= N and radii[n] > self.radii[e]),
-                           key=lambda n: (-self.first_grasp(ents[n] - N, 0), ents[n]))
-            dropped: list[int] = []
-            for drop in range(1, len(later) + 1):
-                if sol is not None:
-                    break
-                fewer = list(radii)
-                dropped = later[:drop]
-                for n in dropped:
-                    fewer[n] = float(self.radii[ents[n]])
-                for attempt in range(SEEDS):
-                    sol = self.place_in(k, fewer, [], [], attempt)
+                sol = None
+                for n in range(len(future), -1, -1):
+                    for attempt in range(SEEDS if n == 0 else 2):
+                        sol = self.place_in(k, radii + future[:n], [], [], attempt)
+                        if sol is not None:
+                            sol = sol[: len(radii)]
+                            break
                     if sol is not None:
                         break
-            if sol is not None and dropped:
-                sol = self._formable_layout(k, ents, radii, dropped, sol)
+                # teams that form one after another need not all fit at once: reserve the disks of the objects
+                # grasped first only (each later grasp checks its disk when it forms)
+                later = sorted((n for n, e in enumerate(ents) if e >= N and radii[n] > self.radii[e]),
+                               key=lambda n: (-self.first_grasp(ents[n] - N, 0), ents[n]))
+                dropped: list[int] = []
+                for drop in range(1, len(later) + 1):
+                    if sol is not None:
+                        break
+                    fewer = list(radii)
+                    dropped = later[:drop]
+                    for n in dropped:
+                        fewer[n] = float(self.radii[ents[n]])
+                    for attempt in range(SEEDS):
+                        sol = self.place_in(k, fewer, [], [], attempt)
+                        if sol is not None:
+                            break
+                if sol is not None and dropped:
+                    sol = self._formable_layout(k, ents, radii, dropped, sol)
+                if sol is None:
+                    who = ", ".join((self.ts.robot_names + self.ts.object_names)[e] for e in everyone)
+                    raise PlacementError(f"initial state: region '{self.ts.region_names[k]}': the entities {who} "
+                                         "with the team disks of their objects do not fit", None, k)
+                lone = {i for i, j in seated.items() if any(ents[n] == N + j for n in dropped)}
+                if not lone:
+                    break
+                seated = {i: j for i, j in seated.items() if i not in lone}
             if sol is None:
-                raise PlacementError(f"initial state: region '{self.ts.region_names[k]}': the entities "
-                                     f"{', '.join((self.ts.robot_names + self.ts.object_names)[e] for e in everyone)} "
-                                     "with the team disks of their objects do not fit", None, k)
+                continue  # placed one entity after the other (hints)
             pos[ents] = sol
             for j in sorted(set(seated.values())):
                 self.seat(pos, k, j, seated)

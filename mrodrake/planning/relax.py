@@ -14,7 +14,8 @@ them or constrains the others:
   objects no team can move (:func:`~mrodrake.planning.exact.immovable_objects`) and robots without a passage
   never move;
 * packing (P_s), step capacity, Λ and grasping are dropped: entities of E move independently, one visible
-  crossing per letter, any number of invisible ones (ε, closed over);
+  crossing per letter, any number of invisible ones (ε, closed over); only a guard cube that needs two
+  entities in one region where they never fit together (:meth:`Relaxations._crowded`) is never usable;
 * entities outside E are unconstrained: an NBA cube is usable if E's part holds on the letter and the rest
   is satisfiable by *some* placement of the other entities (each in at most one region it can reach; one
   that can move may be in none, between regions).
@@ -197,12 +198,49 @@ class Relaxations:
                             bad.add(e)
                     elif ne and self.reach[e] == 1 << ts.initial[e] and ne >> ts.initial[e] & 1:
                         bad.add(e)
+                if self._crowded(p):
+                    bad.add(-1)
                 self.bad.append(frozenset(bad))
         Q = self.nba.num_states
         C = len(qs)
         self.edge_of = sp.csr_matrix((np.ones(C, dtype=np.int64), (np.arange(C), np.array(qs, dtype=np.int64) * Q
                                       + np.array(ds, dtype=np.int64))), shape=(C, Q * Q))
         self._compat: dict[int, np.ndarray] = {}
+
+    def _crowded(self, p: int) -> bool:
+        """Do two entities the cube puts in one region never fit there together?  Every letter's entities of
+        region k are units of the source or target state of its step, which fit together (P_s, step capacity):
+        a body of radius r has its centre within R_k − r of c_k, an object outside its initial region within
+        R_k − b − spacing/2 (b: the smallest covering radius of a team that can carry it, which put it down or
+        holds it), and two objects keep the spacing.  Of two objects in k, not both at home, the one that
+        entered k last came with its team: at the end of that step its team's disk (radius >= b) and the other
+        object fit in k."""
+        ts, K, N = self.ts, self.ts.K, self.ts.N
+        sp = ts.spacing
+        for k in range(K):
+            es = [e for e in range(N + ts.M) if p >> (e * K + k) & 1]
+            if len(es) < 2:
+                continue
+            R = ts.region_radius[k]
+            body, reach, team = [], [], []
+            for e in es:
+                r = ts.robot_radius[e] if e < N else ts.object_radius[e - N]
+                b = ts.smallest_team_radius(e - N) if e >= N else None
+                body.append(r)
+                team.append(b)
+                reach.append(R - r if b is None or k == ts.initial[e] else R - b - 0.5 * sp)
+            for a, c in itertools.combinations(range(len(es)), 2):
+                objects = es[a] >= N and es[c] >= N
+                gap = sp if objects else 0.0
+                if reach[a] + reach[c] < body[a] + body[c] + gap - 1e-9:
+                    return True
+                if not objects or (k == ts.initial[es[a]] and k == ts.initial[es[c]]):
+                    continue
+                # x entered k after y, with its team around it
+                if not any(team[x] is not None and R - team[x] - 0.5 * sp + reach[y] >= team[x] + body[y] + sp - 1e-9
+                           for x, y in ((a, c), (c, a))):
+                    return True
+        return False
 
     def compat(self, e: int) -> np.ndarray:
         """``A[c, r + 1]``: does entity e in region r (r = −1: in no region AP_φ names) satisfy e's part of
@@ -328,7 +366,7 @@ class Relaxations:
         if kind == "labels":
             return (f"task is unsatisfiable: no accepting cycle of the NBA ({Q} states) has guards that executed "
                     "words of the TS can satisfy (relaxation: each entity confined to the regions it can reach, "
-                    "between regions while it travels)")
+                    "between regions while it travels; entities a guard needs in one region fit there together)")
         if kind == "entity":
             return (f"task is unsatisfiable: {who} cannot produce a word the NBA accepts even with every other "
                     f"entity unconstrained (relaxation: its own travels only, packing and Λ dropped; {size} "

@@ -200,3 +200,18 @@ def test_point_resolution_is_the_resolution_at_one_point():
     ref = resolution(pw, pts)
     got = np.array([point_resolution(pw, p) for p in pts])
     assert np.allclose(got, ref, rtol=1e-12, atol=0.0)  # the same Jacobian, closed forms on floats
+
+
+def test_a_grid_path_passes_a_channel_between_two_grid_rows():
+    """Two rooms joined by a channel 0.14 m wide (y in [5.05, 5.19]): no row of the 0.25 m grid lies in it,
+    one of the 0.125 m grid does (a team's centre space in a door it just fits through)."""
+    west = shapely.box(0.0, 0.0, 10.0, 10.0)
+    east = shapely.box(11.0, 0.0, 21.0, 10.0)
+    poly = shapely.union_all([west, east, shapely.box(9.0, 5.05, 12.0, 5.19)])
+    start, goal = (5.0, 5.0), (16.0, 5.0)
+    with pytest.raises(ValueError):
+        grid_path(poly, start, goal)
+    path = grid_path(poly, start, goal, halvings=1)
+    assert np.allclose(path[0], start) and np.allclose(path[-1], goal)
+    for a, b in zip(path[:-1], path[1:]):
+        assert poly.buffer(1e-9).covers(shapely.LineString([a, b]))

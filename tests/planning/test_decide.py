@@ -129,3 +129,57 @@ def test_large_satisfiable_tasks_are_not_refuted(size):
     f, nba = task_nba(sc, ts)
     d = decide(ts, nba, relevant_mask(ts, f))
     assert d.exact is None and "too large to decide" in d.undecided
+
+
+def _two_objects(formula: str):
+    """Two robots (radius 0.5 m) must team up (covering radius 1.25 m) to carry either object out of p1: in p2
+    (radius 1.45 m) each object put down lies within 0.15 m of the centre, too close for both; in p4 (1.8 m) within
+    0.5 m, where both fit but the second team's disk leaves no room for the first object; p3 holds both."""
+    return scenario_from_dict({
+        "name": "two_objects",
+        "workspace": {"boundary": [[0, 0], [24, 0], [24, 14], [0, 14]], "obstacles": []},
+        "regions": [{"name": "p1", "center": [5, 7], "radius": 3.5},
+                    {"name": "p2", "center": [14, 3.5], "radius": 1.45},
+                    {"name": "p3", "center": [18, 10], "radius": 3.0},
+                    {"name": "p4", "center": [11, 11.5], "radius": 1.8}],
+        "robots": [{"name": f"r{i}", "mass": 1.0, "radius": 0.5, "power": 2, "initial_region": "p1"} for i in (1, 2)],
+        "objects": [{"name": f"o{j}", "mass": 0.25, "radius": 0.15, "required_power": 4, "initial_region": "p1"}
+                    for j in (1, 2)],
+        "task": {"formula": formula}})
+
+
+@pytest.mark.parametrize("region", ["p2", "p4"])
+def test_a_guard_that_needs_two_objects_where_they_never_fit_together_is_unusable(region):
+    sc = _two_objects(f"F (o1_{region} & o2_{region})")
+    ts, f, nba, relax = _relax(sc)
+    msg = relax.prove()
+    assert relax.stats["relaxation"] == "labels" and "fit there together" in msg
+    with pytest.raises(UserError) as e:
+        solve_exact(ts, nba, relevant_mask(ts, f))
+    assert str(e.value).startswith("task is unsatisfiable")
+
+
+def test_a_guard_that_needs_two_objects_where_they_fit_is_kept():
+    sc = _two_objects("F (o1_p3 & o2_p3)")
+    ts, f, nba, relax = _relax(sc)
+    assert relax.prove() is None
+    assert solve_exact(ts, nba, relevant_mask(ts, f)) is not None
+
+
+TWO = ["o1_p1", "o2_p1", "o1_p2", "o2_p2", "o1_p3", "o2_p3", "o1_p4", "o2_p4", "r1_p4", "r2_p3"]
+
+
+@settings(max_examples=80, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(a=st.sampled_from(TWO), b=st.sampled_from(TWO), c=st.sampled_from(TWO),
+       shape=st.sampled_from(["F ({a} & {b})", "F ({a} & {b}) & G F {c}", "(!{c} U ({a} & {b}))",
+                              "G F ({a} & {b}) & G F !{c}", "F ({a} & {b} & X {c})"]))
+def test_packing_guards_never_prove_a_satisfiable_task_unsatisfiable(a, b, c, shape):
+    sc = _two_objects(shape.format(a=a, b=b, c=c))
+    ts, f, nba, relax = _relax(sc)
+    proof = relax.prove()
+    try:
+        solve_exact(ts, nba, relevant_mask(ts, f))
+        sat = True
+    except UserError:
+        sat = False
+    assert not (sat and proof), proof

@@ -401,3 +401,32 @@ def test_a_task_whose_object_must_leave_a_small_region_before_a_team_comes_in_pl
     plan = plan_scenario(sc, seed=0, iterations=3000, layout_seed=485850373)
     assert plan.placement is not None and plan.placement.steps
     assert plan.stats["placement"]["rejected"] == []
+
+
+def _crowded_start(formula: str) -> dict:
+    """20 m x 14 m; p1 (radius 2.2 m) starts with three robots of radius 0.5 m and two objects whose two-robot
+    teams (covering radius 1.25 m) cannot both keep their disks there."""
+    return {
+        "name": "crowded_start",
+        "workspace": {"boundary": [[0, 0], [20, 0], [20, 14], [0, 14]],
+                      "obstacles": [{"name": "bench", "polygon": [[8, 5.5], [12, 5.5], [12, 8.5], [8, 8.5]]}]},
+        "regions": [{"name": "p1", "center": [3, 3], "radius": 2.2}, {"name": "p2", "center": [3, 11], "radius": 1.4},
+                    {"name": "p3", "center": [17, 11], "radius": 1.8}, {"name": "p4", "center": [17, 3], "radius": 2.0},
+                    {"name": "p5", "center": [10, 11.5], "radius": 1.5}],
+        "robots": [{"name": f"r{i}", "mass": 1.0, "radius": 0.5, "power": p, "initial_region": k}
+                   for i, p, k in ((1, 2, "p1"), (2, 3, "p1"), (3, 2, "p1"), (4, 2, "p4"))],
+        "objects": [{"name": f"o{j}", "mass": 0.25, "radius": 0.15, "required_power": 4, "initial_region": "p1"}
+                    for j in (1, 2)],
+        "task": {"formula": formula},
+    }
+
+
+def test_a_robot_of_a_team_that_forms_later_starts_inside_its_region():
+    """o2's team disk is not reserved at the start (o1's team forms first); r1, a member of o2's team, used to
+    stand on o2's layout slot facing away from p1's centre, its body 0.3 m outside p1, and the grasp found no
+    free layout in 17 plans (satisfiability unknown)."""
+    sc = scenario_from_dict(_crowded_start("G (o1_p1 -> o2_p1) & F o1_p4 & F o2_p5"))
+    plan = plan_scenario(sc, seed=0, iterations=1000)
+    assert plan.stats["placement"]["rejected"] == []
+    ts = TransitionSystem(sc)
+    check_configuration(ts, ts.initial, np.asarray(plan.placement.initial, dtype=float))
