@@ -199,6 +199,7 @@ class MissionControllers(LeafSystem):
         for c in self.names:
             self._force_at.append(at)
             at += 2 * max(1, len(self.members[c]))
+        self._is_team = [bool(self.members[c]) for c in self.names]
         init = [v for b in self.bodies for v in gains.initial_estimates(b)]
         self.DeclareContinuousState(BasicVector(init))
         self.state_ports = {c: self.DeclareVectorInputPort(f"state_{c}", 4) for c in self.names}
@@ -312,7 +313,7 @@ class MissionControllers(LeafSystem):
         out = np.zeros(2 * len(self.force_slots))
         for q in active:
             u, at = laws[q].u, self._force_at[q]
-            if self.members[self.names[q]]:
+            if self._is_team[q]:
                 for k, cf in enumerate(cmds[q].task.cf.tolist()):
                     out[at + 2 * k : at + 2 * k + 2] = cf * u
             else:

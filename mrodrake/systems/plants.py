@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from typing import NamedTuple
 
 import numpy as np
 from pydrake.common.value import AbstractValue
@@ -225,6 +226,16 @@ class CoupledPlant(_PointMassPlant):
 
 
 # ------------------------------------------------------------------------------------------ the plants of a mission
+class _Syncs(NamedTuple):
+    """What :class:`MissionPlants` reads from its sync commands and parameters (one cache entry)."""
+
+    moving: tuple[int, ...]  # plants not parked
+    versions: np.ndarray  # every plant's command version
+    commands: list  # every plant's SyncCommand
+    offsets: list  # per team plant: its members' grasp offsets [[dx, dy], ...]
+    params: tuple  # per body: (mass, friction scale, friction frequency)
+
+
 class MissionPlants(LeafSystem):
     """Every plant of a mission in one LeafSystem: a body per robot and per object (eqs. (1), (2), without
     contact forces) and a team plant per (object, team) of the plan's transports (eq. (5)).
@@ -320,11 +331,10 @@ class MissionPlants(LeafSystem):
 
     def moving(self, context) -> list[str]:
         """The plants whose sync command does not park them."""
-        return [self.names[k] for k in self._syncs.Eval(context)[0]]
+        return [self.names[k] for k in self._syncs.Eval(context).moving]
 
     # ------------------------------------------------------------------ sync commands
     def _CalcSyncs(self, context, value):
-        """(moving plants, versions, commands, every team's member offsets, every body's [m, scale, frequency])."""
         cmds = [p.Eval(context) for p in self._sync_list]
         moving = tuple(k for k, c in enumerate(cmds) if not c.frozen)
         versions = np.array([c.version for c in cmds], dtype=float)
@@ -332,12 +342,13 @@ class MissionPlants(LeafSystem):
         offsets = []
         for q, (_, team) in enumerate(self._team_bodies):
             off = cmds[n_e + q].offsets
-            offsets.append(np.asarray(off, dtype=float).reshape(len(team), 2) if len(off) else np.zeros((len(team), 2)))
+            offsets.append(np.asarray(off, dtype=float).reshape(len(team), 2).tolist() if len(off)
+                           else [[0.0, 0.0]] * len(team))
         params = tuple(tuple(context.get_numeric_parameter(b).value().tolist()) for b in range(len(self._models)))
-        value.set_value((moving, versions, cmds, [o.tolist() for o in offsets], params, offsets))
+        value.set_value(_Syncs(moving, versions, cmds, offsets, params))
 
     def _CalcNewVersions(self, context, value):
-        versions = self._syncs.Eval(context)[1]
+        versions = self._syncs.Eval(context).versions
         value.set_value(tuple(np.flatnonzero(versions != context.get_discrete_state(
             int(self._version_index)).value()).tolist()))
 
@@ -345,7 +356,8 @@ class MissionPlants(LeafSystem):
         changed = self._new_versions.Eval(context)
         if not changed:
             return EventStatus.DidNothing()
-        _, versions, cmds, _, _, _ = self._syncs.Eval(context)
+        syncs = self._syncs.Eval(context)
+        versions, cmds = syncs.versions, syncs.commands
         s = context.get_continuous_state_vector().CopyToVector()
         for k in changed:
             s[4 * k : 4 * k + 4] = np.concatenate([cmds[k].x, cmds[k].v])
@@ -386,7 +398,7 @@ class MissionPlants(LeafSystem):
         return (u0 - f0) / m_total, (u1 - f1) / m_total
 
     def DoCalcTimeDerivatives(self, context, derivatives):
-        moving, _, _, offsets, params, _ = self._syncs.Eval(context)
+        moving, _, _, offsets, params = self._syncs.Eval(context)
         out = np.zeros(4 * len(self.names))  # SetFromVector takes an array faster than a list
         if moving:
             s = self.state_port.Eval(context)
@@ -401,6 +413,6 @@ class MissionPlants(LeafSystem):
 
         def calc(context, output):
             s = context.get_continuous_state_vector().CopyToVector()[b : b + 4]
-            s[:2] += self._syncs.Eval(context)[5][q][k]
+            s[:2] += self._syncs.Eval(context).offsets[q][k]
             output.SetFromVector(s)
         return calc
