@@ -90,6 +90,7 @@ class SuccessorSampler:
         self.required_power = list(ts.required_power)
         self.stats = {"toward": 0, "toward_fail": 0, "random": 0, "random_fail": 0}
         self._next: dict[tuple[int, int], tuple[np.ndarray, list[int]]] = {}
+        self._checked: dict[tuple[State, State], bool] = {}  # _successor per step
 
     # ------------------------------------------------------------------------------------------- public
     def sample(self, s: State, goal: Goal | None, p_new: float) -> State:
@@ -133,9 +134,13 @@ class SuccessorSampler:
     # ------------------------------------------------------------------------------------------ helpers
     def _successor(self, s: State, t: State) -> bool:
         """t is valid, its region changes can be travelled and the step fits (the action rules hold by
-        construction of the units)."""
-        ts = self.ts
-        return ts.is_valid(t) and ts.step_fits(s, t) and ts.blocked(s, t) is None
+        construction of the units; cached per step)."""
+        key = (s, t)
+        ok = self._checked.get(key)
+        if ok is None:
+            ts = self.ts
+            ok = self._checked[key] = ts.is_valid(t) and ts.step_fits(s, t) and ts.blocked(s, t) is None
+        return ok
 
     def _apply(self, s: State, units: list[tuple]) -> State:
         """Apply units: ('T', j, dst, team), ('G', i, j), ('R', i), ('N', i, dst)."""

@@ -365,11 +365,9 @@ class _Tree:
         self.width = len(ts.initial)
         cap = 256
         self.X = np.zeros((cap, self.width), dtype=planner.strategy.dtype)
-        self.lid = np.zeros(cap, dtype=np.int32)
-        self.node_of = np.full((cap, self.Q), -1, dtype=np.int64)
-        self._at: list[list[int]] = []  # node_of as lists
-        self.lids: list[int] = []  # lid as a list
-        self.C = np.zeros(cap)
+        self._at: list[list[int]] = []  # per tree state and NBA state: the node, or -1
+        self.lids: list[int] = []  # per tree state: its label id
+        self.C: list[float] = []  # per node: its cost from the root
         self.states: list[State] = []
         self.tid_of: dict[State, int] = {}
         self.n_tid: list[int] = []
@@ -384,6 +382,11 @@ class _Tree:
         self.frontier: dict[float, list[tuple[float, int]]] = {}  # per bucket: (estimated steps, node)
         self._opts: dict[int, list] = {}
         self._adj: list[list[list]] = []  # per tree state: neighbours, χ, visibility (symmetric strategies)
+        # per tree state (symmetric strategies): may inserting it again change the tree?  Cleared by its
+        # parent search, set when a node at it or at a neighbour is added or gets cheaper (_touch)
+        self._stale: list[bool] = []
+        self._idle_self: list[bool] = []  # its own nodes as parents are the idle closure's (see _link)
+        self._settling = -1  # the tree state whose parent search and idle closure are running
         self.iterations = 0
         self._reparents = 0  # reparentings so far (tells when costs may have fallen)
         tid = self._add_state(root)
@@ -396,31 +399,42 @@ class _Tree:
         tid = len(self.states)
         if tid >= len(self.X):
             self.X = np.concatenate([self.X, np.zeros_like(self.X)])
-            self.lid = np.concatenate([self.lid, np.zeros_like(self.lid)])
-            self.node_of = np.concatenate([self.node_of, np.full_like(self.node_of, -1)])
         self.X[tid] = s
-        self.lid[tid] = lid = self.p.labels.lid(s)
-        self.lids.append(lid)
+        self.lids.append(self.p.labels.lid(s))
         self._at.append([-1] * self.Q)
         self.states.append(s)
         self.tid_of[s] = tid
+        self._stale.append(True)
         return tid
+
+    def _touch(self, tid: int) -> None:
+        """A node at tree state tid was added or got cheaper: its neighbours (and tid) may find cheaper parents
+        there.  Changes at the state whose parent search is running leave that state clean when its own nodes
+        as parents are the idle closure's (the closure settles them)."""
+        stale = self._stale
+        if tid == self._settling:
+            for u in self._adj[tid][0]:
+                if u != tid:
+                    stale[u] = True
+            return
+        for u in self._adj[tid][0]:
+            stale[u] = True
+        stale[tid] = True
 
     def _new_node(self, tid: int, q: int, parent: int, w: float) -> int:
         v = len(self.n_tid)
-        if v >= len(self.C):
-            self.C = np.concatenate([self.C, np.zeros_like(self.C)])
         self.n_tid.append(tid)
         self.n_q.append(q)
         self.parent.append(parent)
         self.w.append(w)
         self.children.append([])
-        self.C[v] = (self.C[parent] + w) if parent >= 0 else 0.0
+        self.C.append((self.C[parent] + w) if parent >= 0 else 0.0)
         if parent >= 0:
             self.children[parent].append(v)
-        self.node_of[tid, q] = v
         self._at[tid][q] = v
-        succ = self.p.labels.succ[self.lid[tid]][q]
+        if self.p.strategy.symmetric:
+            self._touch(tid)
+        succ = self.p.labels.succ[self.lids[tid]][q]
         h = min((self.D[x] for x in succ), default=INF)
         self.h.append(h)
         if h < INF:
@@ -454,10 +468,15 @@ class _Tree:
         C = self.C
         C[v] = C[u] + w
         stack = list(self.children[v])
+        changed = {self.n_tid[v]}
         while stack:
             c = stack.pop()
             C[c] = C[self.parent[c]] + self.w[c]
+            changed.add(self.n_tid[c])
             stack.extend(self.children[c])
+        if self.p.strategy.symmetric:
+            for tid in changed:
+                self._touch(tid)
 
     # --------------------------------------------------------------------------------- growth
     def insert(self, s: State) -> None:
@@ -471,6 +490,8 @@ class _Tree:
             if tid is None:
                 tid = self._add_state(s)
                 pred, chi, seen = self._link(tid)
+            elif not self._stale[tid]:
+                return  # no node at s or next to it has changed since its last parent search
             else:
                 pred, chi, seen = self._adj[tid]
             if p.banned and s in p.banned:
@@ -485,6 +506,9 @@ class _Tree:
             pred, chi, seen = pa.tolist(), p.trans.cost(X[pa], row).tolist(), p.words.visible(X[pa], s).tolist()
         if not pred:
             return
+        if p.strategy.symmetric:
+            self._stale[tid] = False
+            self._settling = tid if self._idle_self[tid] else -1
         # cheapest parent per NBA state among the nodes at the neighbouring states, the first one on ties;
         # steps whose crossings the task sees take executed-word moves instead of the label's
         Q, C, at, lids = self.Q, self.C, self._at, self.lids
@@ -524,7 +548,7 @@ class _Tree:
                 changed.append(v)
         # idle self-loop closure: (s, q) -> (s, q') costs nothing when q' ∈ δ(q, L(s)) and s -> s exists
         queue = list(changed) if p.strategy.can_idle(s) else []
-        succ_rows = p.labels.succ[self.lid[tid]]
+        succ_rows = p.labels.succ[lids[tid]]
         while queue:
             v = queue.pop()
             for q2 in succ_rows[self.n_q[v]]:
@@ -537,17 +561,15 @@ class _Tree:
                     continue
                 changed.append(y)
                 queue.append(y)
+        self._settling = -1
         if not changed:
             return
-        if p.strategy.symmetric:  # symmetric relation and χ: successors of s are its predecessors
-            pa, ca, sa = np.array(pred, dtype=np.int64), np.array(chi, dtype=float), np.array(seen, dtype=bool)
-        else:
+        if not p.strategy.symmetric:  # else the relation and χ are symmetric: successors of s are its predecessors
             pa = np.flatnonzero(p.trans.mask_from(s, X))
             if p.banned and s in p.banned:
                 pa = pa[[self.states[u] not in p.banned[s] for u in pa]].astype(np.int64)
-            ca = p.trans.cost(row, X[pa])
-            sa = p.words.visible(X[pa], s)
-        self._rewire(list(dict.fromkeys(changed)), pa, ca, sa)
+            pred, chi, seen = pa.tolist(), p.trans.cost(row, X[pa]).tolist(), p.words.visible(X[pa], s).tolist()
+        self._rewire(list(dict.fromkeys(changed)), pred, chi, seen)
 
     def _link(self, tid: int) -> tuple[list[int], list[float], list[bool]]:
         """The neighbours of the new tree state ``tid`` among the earlier ones (symmetric strategies): the
@@ -561,6 +583,9 @@ class _Tree:
         seen = p.words.visible(rows[nb], s)
         nb, chi, seen = nb.tolist(), chi.tolist(), seen.tolist()
         self._adj.append([nb, chi, seen])
+        # with a free hidden self-loop, s's nodes as parents of s's nodes are exactly the idle closure
+        loop = bool(nb) and nb[-1] == tid
+        self._idle_self.append(not loop or (p.strategy.can_idle(s) and chi[-1] == 0.0 and not seen[-1]))
         adj = self._adj
         for u, c, w in zip(nb, chi, seen):
             if u != tid:
@@ -571,61 +596,40 @@ class _Tree:
         k = len(nb) - 1 if nb and nb[-1] == tid else len(nb)
         return nb[:k], chi[:k], seen[:k]
 
-    def _rewire(self, vs: list[int], succ: np.ndarray, chi: np.ndarray, vis: np.ndarray) -> None:
+    def _rewire(self, vs: list[int], succ: list[int], chi: list[float], vis: list[bool]) -> None:
         """Reparent the nodes at TS states ``succ`` (costs ``chi`` from the one TS state of the nodes ``vs``;
-        ``vis``: the steps whose crossings the task sees) through each node of vs in turn, as testing them one by
-        one would: per node, the candidates through hidden steps by the costs at its turn, then through visible
-        ones by the costs after those.  Consecutive nodes are tested together until a reparenting lowers costs."""
+        ``vis``: the steps whose crossings the task sees) through each node of vs in turn: per node, the
+        candidates through hidden steps (NBA state first, as the label's moves are listed, then TS state),
+        then through visible ones (TS state first) by the costs after those."""
         p = self.p
-        C = self.C
+        C, at, n_q = self.C, self._at, self.n_q
         tid = self.n_tid[vs[0]]
-        s = self.states[tid]
-        Y = self.node_of[succ]  # (states, Q): fixed while rewiring (no new nodes)
-        has = Y >= 0
-        Yc = np.maximum(Y, 0)
-        hidden = ~vis[:, None] & has  # (states, Q)
-        vk_all = np.flatnonzero(vis)
-        moves = p.labels.T[self.lid[tid]]
-        sids = np.full(len(succ), -1, dtype=np.int64)  # step ids of s -> succ[k], filled when needed
-        i = 0
-        while i < len(vs):
-            batch = np.array(vs[i:], dtype=np.int64)
-            CY = C[Yc] - 1e-9
-            newc = C[batch][:, None] + chi[None, :]  # (batch, states)
-            cheaper = newc[:, :, None] < CY[None, :, :]  # (batch, states, Q)
-            if not (cheaper & has).any():  # no node is cheaper through the batch: nothing to reparent
-                break
-            n_q = self.n_q
-            first = (moves[[n_q[v] for v in vs[i:]]][:, None, :] & hidden[None] & cheaper
-                     ).transpose(0, 2, 1)  # (batch, Q, states): NBA state first, as the moves are listed
-            if len(vk_all):
-                other = has[vk_all][None] & (Y[vk_all][None] != batch[:, None, None])
-                later = (cheaper[:, vk_all] & other).any(axis=2)  # (batch, visible states)
-            done = self._reparents
-            for b, v in enumerate(batch.tolist()):
-                for q2, k in zip(*np.nonzero(first[b])):
-                    self._try_reparent(int(Y[k, q2]), v, float(chi[k]))
-                if not len(vk_all):
+        s, states = self.states[tid], self.states
+        words = p.words
+        moves = p.labels.succ[self.lids[tid]]
+        hidden = [(at[u], c) for u, c, w in zip(succ, chi, vis) if not w]
+        visible = [(k, at[u], c) for k, (u, c, w) in enumerate(zip(succ, chi, vis)) if w]
+        sids: dict[int, int] = {}  # step ids of s -> succ[k], filled when needed
+        try_reparent = self._try_reparent
+        for v in vs:
+            q, cv = n_q[v], C[v]
+            for q2 in moves[q]:
+                for nodes, c in hidden:
+                    y = nodes[q2]
+                    if y >= 0:
+                        try_reparent(y, v, c)
+            for k, nodes, c in visible:
+                b = cv + c
+                if not any(y >= 0 and y != v and b < C[y] - 1e-9 for y in nodes):
                     continue
-                if self._reparents != done:
-                    Yv = Y[vk_all]
-                    later_v = ((C[v] + chi[vk_all])[:, None] < C[np.maximum(Yv, 0)] - 1e-9) & (Yv >= 0) & (Yv != v)
-                    vk = vk_all[later_v.any(axis=1)]
-                else:
-                    vk = vk_all[later[b]]
-                if len(vk):
-                    unknown = vk[sids[vk] < 0]
-                    if len(unknown):
-                        step_id, states = p.words.step_id, self.states
-                        sids[unknown] = [step_id(s, states[u]) for u in succ[unknown].tolist()]
-                    R = p.words.step_rows(sids[vk], np.full(len(vk), self.n_q[v], dtype=np.int64))
-                    for a, q2 in zip(*np.nonzero(R & has[vk])):
-                        self._try_reparent(int(Y[vk[a], q2]), v, float(chi[vk[a]]))
-                if self._reparents != done:
-                    i += b + 1
-                    break
-            else:
-                i = len(vs)
+                sid = sids.get(k)
+                if sid is None:
+                    sid = sids[k] = words.step_id(s, states[succ[k]])
+                targets = words.step_targets(sid, q)
+                for q2 in sorted(targets):
+                    y = nodes[q2]
+                    if y >= 0:
+                        try_reparent(y, v, c)
 
     def _try_reparent(self, y: int, v: int, w: float) -> None:
         if y != v and self.C[v] + w < self.C[y] - 1e-9:
@@ -652,7 +656,7 @@ class _Tree:
         p = self.p
         tid, q = self.n_tid[v], self.n_q[v]
         s = self.states[tid]
-        nexts = p.labels.succ[self.lid[tid]][q]
+        nexts = p.labels.succ[self.lids[tid]][q]
         D = self.D
         dmin = min(D[x] for x in nexts)
         cands = []
@@ -832,7 +836,7 @@ class Stylus:
             d = hop_distances_from(self.nba, q_a)
             reach = [q for q in range(self.nba.num_states) if d[q] < INF]
             self._reach[q_a] = reach
-        T = self.labels.T[tree.lid[tree.n_tid[a]]]
+        T = self.labels.T[tree.lids[tree.n_tid[a]]]
         return bool(T[reach, q_a].any())
 
     def run(self, iterations: int, time_limit: float | None = None, stop_at_first: bool = False,
