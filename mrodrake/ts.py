@@ -164,6 +164,7 @@ class TransitionSystem:
         self._radius_values: list[float] = [0.0]
         self._fit_tables: dict[int, np.ndarray] = {}
         self._fit_memo: dict[int, dict[int, int]] = {}
+        self._union_memo: dict[tuple[int, tuple[int, ...], int], bool] = {}  # _union_fits
         self._graph: RegionGraph | None = None
         self._conn: dict[float, np.ndarray] = {}
         self._travel: dict[float, np.ndarray] = {}
@@ -456,7 +457,7 @@ class TransitionSystem:
         self.robot_regions()
         sub = copy.copy(self)
         sub.bind_home = True
-        sub._valid, sub._fit_tables, sub._fit_memo = {}, {}, {}
+        sub._valid, sub._fit_tables, sub._fit_memo, sub._union_memo = {}, {}, {}, {}
         return sub
 
     def parked_unit(self, j: int, k: int):
@@ -526,23 +527,41 @@ class TransitionSystem:
             if s[e] != t[e]:
                 dep.add(s[e])
                 arr.add(t[e])
-        check = (dep & arr) | {x[i] for i in range(N) if s[N + M + i] != t[N + M + i] for x in (s, t)}
+        changes = [i for i in range(N) if s[N + M + i] != t[N + M + i]]
+        check = (dep & arr) | {x[i] for i in changes for x in (s, t)}
         if not check:
             return True
-        return all(self._union_fits(k, s, t, g) for k in check for g in (s, t))
+        under = (s, t) if changes else (s,)  # the same grasps in both states: one test per region
+        return all(self._union_fits(k, s, t, g) for k in check for g in under)
 
     def _union_fits(self, k: int, s: State, t: State, grasp_state: State) -> bool:
+        """P_s for region k of the entities there in s or t, under the grasps of ``grasp_state`` (cached on the
+        grasps and which entities are there)."""
         N, M = self.N, self.M
-        G = grasp_state[N + M:]
+        G = tuple(grasp_state[N + M:])
+        here = 0
+        for e in range(N + M):
+            if s[e] == k or t[e] == k:
+                here |= 1 << e
+        key = (k, G, here)
+        ok = self._union_memo.get(key)
+        if ok is None:
+            ok = self._union_memo[key] = self._entities_fit(k, G, here)
+        return ok
+
+    def _entities_fit(self, k: int, G: tuple[int, ...], here: int) -> bool:
+        """P_s for region k of the entities in the mask ``here`` (bit e: entity e) under the grasps G: free
+        robots alone, objects with their teams."""
+        N, M = self.N, self.M
         teams: dict[int, list[int]] = {}
         radii = []
         for i in range(N):
             if G[i] >= 0:
                 teams.setdefault(G[i], []).append(i)
-            elif s[i] == k or t[i] == k:
+            elif here >> i & 1:
                 radii.append(self.robot_radius[i])
         for j in range(M):
-            if s[N + j] == k or t[N + j] == k:
+            if here >> (N + j) & 1:
                 radii.append(self.covering_radius(j, tuple(teams[j])) if j in teams else self.parked_unit(j, k))
         return self.region_fits(k, radii)
 

@@ -32,6 +32,7 @@ cycle) must satisfy the formula, i.e. the word graph times an NBA of ¬φ has no
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Iterator, Sequence
 from typing import NamedTuple
@@ -144,8 +145,9 @@ def _events(cross: Sequence[Crossing]) -> tuple[list[tuple[int, int]], list[int]
     return events, pre
 
 
+@functools.cache
 def _prefixes(n: int) -> int:
-    """Order prefixes of n actions, the empty one included: Σ_k n!/(n−k)!."""
+    """Order prefixes of n actions, the empty one included: Σ_k n!/(n−k)! (cached)."""
     return sum(math.perm(n, k) for k in range(n + 1))
 
 
