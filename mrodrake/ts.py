@@ -164,7 +164,7 @@ class TransitionSystem:
         self._radius_values: list[float] = [0.0]
         self._fit_tables: dict[int, np.ndarray] = {}
         self._fit_memo: dict[int, dict[int, int]] = {}
-        self._union_memo: dict[tuple[int, tuple[int, ...], int], bool] = {}  # _union_fits
+        self._union_memo: dict[tuple[int, tuple[int, ...], int], bool] = {}  # _entities_fit per (k, grasps, mask)
         self._graph: RegionGraph | None = None
         self._conn: dict[float, np.ndarray] = {}
         self._travel: dict[float, np.ndarray] = {}
@@ -522,32 +522,40 @@ class TransitionSystem:
         during the step is a subset of that union; a grasp that runs before the others leave its region forms
         its team among them)."""
         N, M = self.N, self.M
-        dep, arr = set(), set()
-        for e in range(N + M):
+        n = N + M
+        dep = arr = 0  # regions as bit masks
+        for e in range(n):
             if s[e] != t[e]:
-                dep.add(s[e])
-                arr.add(t[e])
-        changes = [i for i in range(N) if s[N + M + i] != t[N + M + i]]
-        check = (dep & arr) | {x[i] for i in changes for x in (s, t)}
+                dep |= 1 << s[e]
+                arr |= 1 << t[e]
+        check = dep & arr
+        changes = False
+        for i in range(N):
+            if s[n + i] != t[n + i]:
+                check |= 1 << s[i] | 1 << t[i]
+                changes = True
         if not check:
             return True
-        under = (s, t) if changes else (s,)  # the same grasps in both states: one test per region
-        return all(self._union_fits(k, s, t, g) for k in check for g in under)
-
-    def _union_fits(self, k: int, s: State, t: State, grasp_state: State) -> bool:
-        """P_s for region k of the entities there in s or t, under the grasps of ``grasp_state`` (cached on the
-        grasps and which entities are there)."""
-        N, M = self.N, self.M
-        G = tuple(grasp_state[N + M:])
-        here = 0
-        for e in range(N + M):
-            if s[e] == k or t[e] == k:
-                here |= 1 << e
-        key = (k, G, here)
-        ok = self._union_memo.get(key)
-        if ok is None:
-            ok = self._union_memo[key] = self._entities_fit(k, G, here)
-        return ok
+        here = [0] * self.K  # per region: the entities there in s or t (bit e: entity e)
+        for e in range(n):
+            here[s[e]] |= 1 << e
+            here[t[e]] |= 1 << e
+        # under the grasps of s and those of t (the same when the step changes no grasp)
+        grasps = (tuple(s[n:]), tuple(t[n:])) if changes else (tuple(s[n:]),)
+        memo = self._union_memo
+        k = 0
+        while check:
+            if check & 1:
+                for G in grasps:
+                    key = (k, G, here[k])
+                    ok = memo.get(key)
+                    if ok is None:
+                        ok = memo[key] = self._entities_fit(k, G, here[k])
+                    if not ok:
+                        return False
+            check >>= 1
+            k += 1
+        return True
 
     def _entities_fit(self, k: int, G: tuple[int, ...], here: int) -> bool:
         """P_s for region k of the entities in the mask ``here`` (bit e: entity e) under the grasps G: free

@@ -340,6 +340,7 @@ class ExecutedWords:
         n_ent = ts.N + ts.M
         self.entity_region = np.array([[bool(self.relevant >> (e * K + k) & 1) for k in range(K)]
                                        for e in range(n_ent)], dtype=bool).reshape(n_ent, K)
+        self._entities = np.arange(n_ent)
         self.guards = GuardTable(nba)
         self._succ_bits: dict[tuple[int, int], int] = {}  # (q, letter & used[q]) -> δ(q, letter) mask
         self._used = [_mentioned(nba, q) for q in range(self.Q)]
@@ -700,6 +701,16 @@ class ExecutedWords:
         Q, n = self.Q, len(sig)
         out: list[dict[int, tuple[int, ...]]] = [{} for _ in range(Q)]
         ids = [self._cross_id(c) for c in sig] if ids is None else ids
+        if n == 1 and self._chains[ids[0]] is not None:  # one action, one interleaving: one word
+            R = self._identity
+            for keep, put in self._chains[ids[0]][:-1]:
+                R = self._read(R, mask & keep | put)
+            while R:
+                low = R & -R
+                q, d = divmod(low.bit_length() - 1, Q)
+                out[q][d] = (0,)
+                R ^= low
+            return out
         after, known = self._after_all, self._joint
         covered = 0
         stack = [((self._identity,), mask, (1 << n) - 1, ())]
@@ -892,10 +903,9 @@ class ExecutedWords:
         """``vis[r]``: does the step X[r] → Y[r] (or the reverse) move a body across a rim AP_φ mentions?
         ``Y`` is one state or one row per row of X.  Steps without such a crossing read only their source
         label (the paper's product)."""
-        n_ent = self.ts.N + self.ts.M
-        A = np.asarray(X)[:, :n_ent].astype(np.int64)
-        B = np.broadcast_to(np.asarray(Y, dtype=np.int64)[..., :n_ent], A.shape)
-        idx = np.arange(n_ent)
+        n_ent, idx = len(self._entities), self._entities
+        A = np.asarray(X)[:, :n_ent]
+        B = np.asarray(Y, dtype=np.int64)[..., :n_ent]  # one state broadcasts over the rows
         seen = self.entity_region[idx, A] | self.entity_region[idx, B]
         return ((A != B) & seen).any(axis=1)
 

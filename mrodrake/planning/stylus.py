@@ -48,6 +48,7 @@ and iteration budget give the same plan (a time limit makes the result depend on
 
 from __future__ import annotations
 
+import bisect
 import heapq
 import math
 import time
@@ -91,11 +92,8 @@ class _Transitions:
         self.required = np.array(ts.required_power, dtype=float)
         self.dist = ts.dist
         self.gc = ts.grasp_cost
-        self._robots: dict[tuple[int, int, int], np.ndarray] = {}
-        self._objects: dict[tuple, np.ndarray] = {}
-        self._state_tables: dict[State, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
-        self._object_offsets = np.arange(self.M, dtype=np.int64) * ts.K
-        self._robot_offsets = np.arange(self.N, dtype=np.int64) * (ts.K * (self.M + 1) * 2)
+        self._flat = np.zeros(0, dtype=bool)  # every robot and object table so far, one after another
+        self._offsets: dict[tuple, int] = {}  # table key -> where the table starts in _flat
 
     def mask(self, X: np.ndarray, s) -> np.ndarray:
         """``ok[r]``: is ``X[r] → s`` a TS transition?  Rows of X and s are valid states.
@@ -123,38 +121,46 @@ class _Transitions:
             if len(rows):
                 ok[rows] = self.ts.steps_fit(X[rows], s)
             return ok
-        s = tuple(int(x) for x in np.asarray(s).ravel())
-        U, T, gs = self._tables(s)
+        if not isinstance(s, tuple):
+            s = tuple(int(x) for x in np.asarray(s).ravel())
+        objects, robots = self._tables(s)
+        flat = self._flat
         XR, XO, XG = X[:, :N], X[:, N : N + M], X[:, N + M :]
-        ok = U[XO + self._object_offsets].all(axis=1)
+        ok = flat[XO + objects].all(axis=1)
         moved = np.zeros((n, M + 1), dtype=np.int64)  # last column: no object (grasp -1)
-        moved[:, :M] = XO != np.array(s[N : N + M])
+        moved[:, :M] = XO != s[N : N + M]
+        gs = np.array(s[N + M :])
         cols = np.where(gs >= 0, gs, XG)  # the object in question per robot (−1: the last column)
         flag = moved[np.arange(n)[:, None], cols]
-        ok &= T[(XR * (M + 1) + (XG + 1)) * 2 + flag + self._robot_offsets].all(axis=1)
+        ok &= flat[(XR * (M + 1) + (XG + 1)) * 2 + flag + robots].all(axis=1)
         rows = np.flatnonzero(ok)
         if len(rows):
             ok[rows] = self.ts.steps_fit(X[rows], s)
         return ok
 
-    def _tables(self, s: State) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """The object tables (:meth:`_object_table`) and robot tables (:meth:`_robot_table`) of s, each kind
-        concatenated (object j at offset j·K, robot i at offset i·K·(M + 1)·2), and s's grasps (cached)."""
-        hit = self._state_tables.get(s)
-        if hit is None:
-            N, M = self.N, self.M
-            U = np.concatenate([self._object_table(j, s) for j in range(M)])
-            T = np.concatenate([self._robot_table(i, s[i], s[N + M + i]) for i in range(N)])
-            hit = self._state_tables[s] = (U, T, np.array(s[N + M :], dtype=np.int64))
-        return hit
+    def _tables(self, s: State) -> tuple[np.ndarray, np.ndarray]:
+        """Where s's object tables (:meth:`_object_table`, per object) and robot tables (:meth:`_robot_table`, per
+        robot) start in the flat table array."""
+        N, M = self.N, self.M
+        objects = [self._place(self._object_table(j, s)) for j in range(M)]
+        robots = [self._place(self._robot_table(i, s[i], s[N + M + i])) for i in range(N)]
+        return np.array(objects, dtype=np.int64), np.array(robots, dtype=np.int64)
 
-    def _robot_table(self, i: int, r: int, g: int) -> np.ndarray:
+    def _place(self, table: tuple[tuple, Callable[[], np.ndarray]]) -> int:
+        """The offset of a table (key, how to build it) in the flat table array, appended when new."""
+        key, build = table
+        at = self._offsets.get(key)
+        if at is None:
+            at = self._offsets[key] = len(self._flat)
+            self._flat = np.concatenate([self._flat, build()])
+        return at
+
+    def _robot_table(self, i: int, r: int, g: int) -> tuple[tuple, Callable[[], np.ndarray]]:
         """Robot i's rules for steps between s (robot in region r, grasping g) and any state: a table over
-        (region, grasp + 1, has the object in question moved) of the other state (cached).  The object in
-        question is g when s grasps one, else the one the other state grasps."""
-        key = (i, r, g)
-        T = self._robots.get(key)
-        if T is None:
+        (region, grasp + 1, has the object in question moved) of the other state.  The object in question is g
+        when s grasps one, else the one the other state grasps."""
+
+        def build() -> np.ndarray:
             ts, M = self.ts, self.M
             C = ts.travel(ts.robot_radius[i])
             T = np.zeros((ts.K, M + 1, 2), dtype=bool)
@@ -169,18 +175,18 @@ class _Transitions:
                         else:
                             bad = moves and not C[xr, r]
                         T[xr, xg + 1, int(flag)] = not bad
-            T = self._robots[key] = T.ravel()
-        return T
+            return T.ravel()
 
-    def _object_table(self, j: int, s: State) -> np.ndarray:
+        return ("robot", i, r, g), build
+
+    def _object_table(self, j: int, s: State) -> tuple[tuple, Callable[[], np.ndarray]]:
         """``U[k]``: may object j be in region k in the other state of a step with s?  Only where it is in s,
-        or one travel away for s's team if that team is powerful enough (Λ; cached)."""
+        or one travel away for s's team if that team is powerful enough (Λ)."""
         N, M = self.N, self.M
         team = tuple(i for i in range(N) if s[N + M + i] == j)
         o = s[N + j]
-        key = (j, o, team)
-        U = self._objects.get(key)
-        if U is None:
+
+        def build() -> np.ndarray:
             ts = self.ts
             power = 0.0
             for i in team:
@@ -190,8 +196,9 @@ class _Transitions:
             if team and not power < ts.required_power[j]:
                 C = ts.travel(ts.travel_radius(j, team))
                 U |= C[:, o]
-            self._objects[key] = U
-        return U
+            return U
+
+        return ("object", j, o, team), build
 
     def cost(self, A: np.ndarray, B: np.ndarray) -> np.ndarray:
         """χ(A[r], B[r]) for all rows (broadcast like :meth:`mask`)."""
@@ -366,6 +373,7 @@ class _Tree:
         cap = 256
         self.X = np.zeros((cap, self.width), dtype=planner.strategy.dtype)
         self._at: list[list[int]] = []  # per tree state and NBA state: the node, or -1
+        self._qs: list[list[int]] = []  # per tree state: the NBA states of its nodes, in increasing order
         self.lids: list[int] = []  # per tree state: its label id
         self.C: list[float] = []  # per node: its cost from the root
         self.states: list[State] = []
@@ -402,6 +410,7 @@ class _Tree:
         self.X[tid] = s
         self.lids.append(self.p.labels.lid(s))
         self._at.append([-1] * self.Q)
+        self._qs.append([])
         self.states.append(s)
         self.tid_of[s] = tid
         self._stale.append(True)
@@ -432,6 +441,7 @@ class _Tree:
         if parent >= 0:
             self.children[parent].append(v)
         self._at[tid][q] = v
+        bisect.insort(self._qs[tid], q)
         if self.p.strategy.symmetric:
             self._touch(tid)
         succ = self.p.labels.succ[self.lids[tid]][q]
@@ -511,16 +521,14 @@ class _Tree:
             self._settling = tid if self._idle_self[tid] else -1
         # cheapest parent per NBA state among the nodes at the neighbouring states, the first one on ties;
         # steps whose crossings the task sees take executed-word moves instead of the label's
-        Q, C, at, lids = self.Q, self.C, self._at, self.lids
+        Q, C, at, lids, qs = self.Q, self.C, self._at, self.lids, self._qs
         succ, words, states = p.labels.succ, p.words, self.states
         best_cost, best = [INF] * Q, [-1] * Q
         cand_u, cand_c = [], []
         for u_state, c, vis in zip(pred, chi, seen):
             nodes, moves, sid = at[u_state], succ[lids[u_state]], -1
-            for q in range(Q):
+            for q in qs[u_state]:
                 u = nodes[q]
-                if u < 0:
-                    continue
                 if vis:
                     if sid < 0:
                         sid = words.step_id(states[u_state], s)
