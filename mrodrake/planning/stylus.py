@@ -493,9 +493,6 @@ class _Tree:
         """Add TS state s with every NBA state it can take (cheapest parents), then rewire."""
         p = self.p
         tid = self.tid_of.get(s)
-        n = len(self.states)
-        row = np.asarray(s, dtype=self.X.dtype)[None, :]
-        X = self.X[:n]
         if p.strategy.symmetric:
             if tid is None:
                 tid = self._add_state(s)
@@ -508,6 +505,8 @@ class _Tree:
                 keep = [k for k, u in enumerate(pred) if self.states[u] not in p.banned[s]]
                 pred, chi, seen = [pred[k] for k in keep], [chi[k] for k in keep], [seen[k] for k in keep]
         else:
+            row = np.asarray(s, dtype=self.X.dtype)[None, :]
+            X = self.X[:len(self.states)]  # the earlier tree states
             pa = np.flatnonzero(p.trans.mask(X, s))
             if p.banned and s in p.banned:
                 pa = pa[[self.states[u] not in p.banned[s] for u in pa]].astype(np.int64)
@@ -587,8 +586,9 @@ class _Tree:
         s = self.states[tid]
         rows = self.X[:tid + 1]
         nb = np.flatnonzero(p.trans.mask(rows, s))
-        chi = p.trans.cost(rows[nb], rows[tid][None, :])
-        seen = p.words.visible(rows[nb], s)
+        near = rows[nb]
+        chi = p.trans.cost(near, rows[tid][None, :])
+        seen = p.words.visible(near, s)
         nb, chi, seen = nb.tolist(), chi.tolist(), seen.tolist()
         self._adj.append([nb, chi, seen])
         # with a free hidden self-loop, s's nodes as parents of s's nodes are exactly the idle closure
