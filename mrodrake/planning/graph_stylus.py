@@ -90,6 +90,7 @@ class GraphStrategy:
     #: Probability that STyLuS* expands the closest not yet focused node of its best bucket (see
     #: ``_Tree.select``): a chain of steps toward a goal then takes as many iterations as steps.
     focus = 0.5
+    first_plan_focus = 0.5  # the same before the first plan
 
     def __init__(self, ts: GraphTS, relevant: int):
         self.ts, self.relevant = ts, int(relevant)

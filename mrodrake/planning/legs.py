@@ -239,13 +239,16 @@ def replan(ts: TransitionSystem, words, graph: PositionGraph, nba: NBA, start: S
 
 class LassoImprover:
     """Re-plans STyLuS* lassos with :func:`replan` (prefix and cycle apart, each along its own NBA sequence and
-    through the lasso's accepting TS state); caches TS successors across calls."""
+    through the lasso's accepting TS state); caches TS successors across calls.  A lasso with the same start,
+    NBA sequences and accepting TS state as one re-planned before is not re-planned again: the searches along
+    those sequences found the cheapest legs then (None)."""
 
     def __init__(self, ts: TransitionSystem, words, nba: NBA, max_expansions: int = 6000):
         self.ts, self.words, self.nba = ts, words, nba
         self.graph = PositionGraph(ts)
         self.max_expansions = max_expansions
         self._succ: dict[State, list[State]] = {}
+        self._done: set[tuple] = set()
 
     @staticmethod
     def applies(ts: TransitionSystem) -> bool:
@@ -265,8 +268,12 @@ class LassoImprover:
         free: the cheapest such state s') and the cycle through s'; when that gives no cheaper lasso, prefix and
         cycle through s_a itself."""
         a = suffix[0]
-        pc, sc = self._cost(prefix, a[0]), self._cost(suffix, a[0])
         cycle_seq = nba_sequence(suffix + [a])
+        key = (prefix[0][0] if prefix else None, tuple(nba_sequence(prefix + [a])), tuple(cycle_seq), a[0])
+        if key in self._done:
+            return None
+        self._done.add(key)
+        pc, sc = self._cost(prefix, a[0]), self._cost(suffix, a[0])
         run = (self.ts, self.words, self.graph, self.nba)
         limits = (self.max_expansions, self._succ, deadline)
 

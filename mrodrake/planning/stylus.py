@@ -9,29 +9,30 @@ The product is never built.  The algorithm, as implemented here:
    can close a suffix with the free all-idle step, so the prefix distance counts the edges up to such
    a "closable" entry (a feasible conjunction of the entry cube with a cycle-entry cube), falling back
    to the plain distance for states that cannot reach one.
-2. **Prefix tree** rooted at ``(s0, q0)``.  Each iteration selects a node: with probability ``p_rand``
-   uniformly among the expandable nodes of minimum ``h(s, q) = min_{q' ∈ δ(q, L(s))} D(q')``, else
-   uniformly among all expandable nodes.  Strategies with a ``focus`` (the graph TS; object systems beyond
-   the case studies' size) first, with that probability, take the node of the minimum bucket with the fewest
-   estimated steps to its goal cube that was not taken this way before, so that a chain of steps toward a
-   goal takes about as many iterations as it has steps.  Among the next NBA states of minimum distance it takes the
-   edges that decrease the distance most and, of their guard cubes, one with the fewest estimated TS
-   steps from ``s`` (navigate, grasp, transport); the cube says which entities must (not) be where.  A
-   TS successor of ``s`` is sampled toward that cube with probability ``p_new``, else uniformly at
-   random (:mod:`~mrodrake.planning.sampler`).  The new TS state is added with every NBA state it can
-   take, each with the **cheapest feasible parent** among all tree nodes (a vectorised transition test
-   over all tree states, once per new TS state and remembered for both ends), closed under the free idle
-   step, and then tree nodes at neighbouring TS states
-   are **rewired** through the new nodes when cheaper (the public MATLAB code has rewiring switched
-   off; here the cost keeps improving with more iterations).  Re-sampling a known state rewires too.
-   The TS relation and χ are symmetric, so one vectorised test gives both parents and rewiring targets.
+2. **Prefix tree** rooted at ``(s0, q0)``.  Each iteration selects a node: with probability ``p_rand`` uniformly
+   among the expandable nodes of minimum ``h(s, q) = min_{q' ∈ δ(q, L(s))} D(q')``, else uniformly among all
+   expandable nodes.  Strategies with a ``focus`` (the graph TS; object systems until the first plan, and beyond
+   the case studies' size throughout) first, with that probability, take the node of the minimum bucket with the
+   fewest estimated steps to its goal cube that was not taken this way before, so that a chain of steps toward a
+   goal takes about as many iterations as it has steps.  Among the next NBA states of minimum distance it takes
+   the edges that decrease the distance most and, of their guard cubes, one with the fewest estimated TS steps
+   from ``s`` (navigate, grasp, transport); the cube says which entities must (not) be where.  A TS successor of
+   ``s`` is sampled toward that cube with probability ``p_new``, else uniformly at random
+   (:mod:`~mrodrake.planning.sampler`).  The new TS state is added with every NBA state it can take, each with the
+   **cheapest feasible parent** among all tree nodes (a vectorised transition test over all tree states, once per
+   new TS state and remembered for both ends), closed under the free idle step, and then tree nodes at
+   neighbouring TS states are **rewired** through the new nodes when cheaper (the public MATLAB code has rewiring
+   switched off; here the cost keeps improving with more iterations).  Re-sampling a known state rewires too.  The
+   TS relation and χ are symmetric, so one vectorised test gives both parents and rewiring targets.
 3. **Suffix trees**, one per accepting prefix node ``a = (s_a, q_a)`` being tried, grown the same way
    with distances back to ``q_a`` (at least one edge); on the last NBA edge the goal also asks for
    ``s_a``'s regions and grasps, and a node ``(s, q)`` closes the cycle when ``q_a ∈ δ(q, L(s))`` and
    ``s → s_a`` is a TS transition.
 4. The cheapest prefix + suffix found so far is the plan (anytime).  On small object systems
-   (:meth:`~mrodrake.planning.legs.LassoImprover.applies`) every new best lasso is also re-planned exactly along
-   its own NBA-state sequence (:mod:`~mrodrake.planning.legs`); the cheaper of the two is the plan.
+   (:meth:`~mrodrake.planning.legs.LassoImprover.applies`) the best lasso is also re-planned exactly along its
+   own NBA-state sequence (:mod:`~mrodrake.planning.legs`) :data:`IMPROVE_PERIOD` iterations after a new best
+   cheaper than every re-planned lasso appeared (the best one then) or at the end of the run; the cheapest lasso
+   is the plan.
 
 Scheduling: until an accepting prefix node exists every iteration grows the prefix tree; afterwards one
 iteration in three does, and the others grow up to ``max_active_suffix`` suffix trees round-robin,
@@ -78,8 +79,13 @@ from mrodrake.planning.semantics import ExecutedWords, GuardTable
 from mrodrake.ts import State, TransitionSystem
 
 INF = math.inf
-#: Object systems with more robots + objects than this focus STyLuS*'s selection (ObjectStrategy.focus).
+#: Object systems with more robots + objects than this focus STyLuS*'s selection after the first plan too
+#: (ObjectStrategy.focus).
 FOCUS_ENTITIES = 8
+#: Iterations between a new best lasso and its exact re-planning (the best lasso then is re-planned; the run's
+#: last one at its end): the first lassos improve quickly, and re-planning each of them costs more than waiting.
+#: Lassos no cheaper than the best re-planned one are not re-planned.
+IMPROVE_PERIOD = 200
 
 
 class _Transitions:
@@ -222,8 +228,10 @@ class ObjectStrategy:
         self.p_rand = ts.scenario.planning.p_rand
         self.p_new = ts.scenario.planning.p_new
         self.transitions = _Transitions(ts)
-        # beyond the case studies' size the best bucket holds hundreds of nodes and uniform picks rarely
-        # continue a chain of steps toward a goal: focus on the closest node (see _Tree.select)
+        # until the first plan, and beyond the case studies' size throughout (the best bucket then holds hundreds
+        # of nodes), uniform picks rarely continue a chain of steps toward a goal: focus on the closest node (see
+        # _Tree.select); on small systems the uniform picks after the first plan find the cheaper plans
+        self.first_plan_focus = 0.8
         self.focus = 0.0 if ts.N + ts.M <= FOCUS_ENTITIES else 0.8
         self._cubes: dict[tuple[int, int], CubeGoal] = {}
         self._goals: dict[tuple, Goal | None] = {}
@@ -778,7 +786,7 @@ class Stylus:
         self.p_new = self.strategy.p_new if p_new is None else p_new
         self.rng = np.random.default_rng(seed)
         self.sampler = self.strategy.sampler(self.rng)
-        self.focus = getattr(self.strategy, "focus", 0.0)
+        self.focus = self.strategy.first_plan_focus  # the strategy's ``focus`` once a plan exists
         self.trans = self.strategy.transitions
         self.labels = _Labels(ts, self.nba)
         self.edges = self.nba.edges
@@ -858,6 +866,7 @@ class Stylus:
         """
         t0 = time.perf_counter()
         ts, rng = self.ts, self.rng
+        self.focus = self.strategy.first_plan_focus
         useful = useful_states(self.nba)
         if self.nba.initial not in useful:
             raise UserError(f"task is unsatisfiable: the NBA ({self.nba.num_states} states) has no accepting "
@@ -879,6 +888,7 @@ class Stylus:
         best = (INF, -1, -1)  # total, accepting prefix node, closing suffix node
         replanned = None  # (total, prefix, suffix, prefix cost, suffix cost) of the best re-planned lasso
         replans, replan_seconds = 0, 0.0
+        pending, last_improve = None, 0  # best lasso not yet re-planned; iteration of the last re-plan
         history = []
         first_seconds = None
         it = rr = 0
@@ -891,6 +901,24 @@ class Stylus:
                 if v >= 0 and pre.C[a] + c < b[0]:
                     b = (pre.C[a] + c, a, v)
             return b
+
+        def improve(lasso):
+            """The improver's re-plan of ``lasso`` (total, prefix node, closing node) if cheaper than the best
+            re-planned lasso so far, else that one."""
+            nonlocal replans, replan_seconds
+            _, a, v = lasso
+            t1 = time.perf_counter()
+            found = self.improver.improve(pre.path(a)[:-1], suffix[a].path(v),
+                                          None if time_limit is None else t0 + time_limit)
+            replans += 1
+            replan_seconds += time.perf_counter() - t1
+            top = min(best[0], replanned[0]) if replanned else best[0]
+            if found is not None and self.banned and self._uses_banned(found[0], found[1]):
+                found = None
+            if found is not None and found[2] + found[3] < top - 1e-9:
+                history.append((time.perf_counter() - t0, it, found[2] + found[3]))
+                return (found[2] + found[3], *found)
+            return replanned
 
         def spent(a: int) -> int:
             return suffix[a].iterations if a in suffix else 0
@@ -942,27 +970,24 @@ class Stylus:
                 elapsed = time.perf_counter() - t0
                 if first_seconds is None:
                     first_seconds = elapsed
+                    self.focus = self.strategy.focus
                 if not replanned or best[0] < replanned[0] - 1e-9:
                     history.append((elapsed, it, best[0]))
                 if stop_at_first:
                     break
-                if self.improver is not None:
-                    _, a, v = best
-                    t1 = time.perf_counter()
-                    found = self.improver.improve(pre.path(a)[:-1], suffix[a].path(v),
-                                                  None if time_limit is None else t0 + time_limit)
-                    replans += 1
-                    replan_seconds += time.perf_counter() - t1
-                    top = min(best[0], replanned[0]) if replanned else best[0]
-                    if found is not None and self.banned and self._uses_banned(found[0], found[1]):
-                        found = None
-                    if found is not None and found[2] + found[3] < top - 1e-9:
-                        replanned = (found[2] + found[3], *found)
-                        history.append((time.perf_counter() - t0, it, replanned[0]))
+                if self.improver is not None and (not replanned or best[0] < replanned[0] - 1e-9):
+                    if pending is None:
+                        last_improve = it
+                    pending = best
+            if pending is not None and it - last_improve >= IMPROVE_PERIOD:
+                replanned = improve(pending)
+                pending, last_improve = None, it
             if progress is not None and (now - last_report > 0.1 or it == iterations):
                 last_report = now
                 progress({"iteration": it, "iterations": iterations, "seconds": now,
                           "prefix_nodes": pre.num_nodes, "suffix_trees": len(suffix), "best": best[0]})
+        if pending is not None:
+            replanned = improve(pending)
         elapsed = time.perf_counter() - t0
         stats = {"iterations": it, "seconds": elapsed, "first_plan_seconds": first_seconds,
                  "prefix_nodes": pre.num_nodes, "prefix_ts_states": len(pre.states),
