@@ -82,6 +82,9 @@ INF = math.inf
 #: Object systems with more robots + objects than this focus STyLuS*'s selection after the first plan too
 #: (ObjectStrategy.focus).
 FOCUS_ENTITIES = 8
+#: Focus of object systems until the first plan (ObjectStrategy.first_plan_focus): a larger one finds most first
+#: plans sooner still, but follows chains whose estimated steps mislead (a team that cannot form) far longer.
+FIRST_PLAN_FOCUS = 0.3
 #: Iterations between a new best lasso and its exact re-planning (the best lasso then is re-planned; the run's
 #: last one at its end): the first lassos improve quickly, and re-planning each of them costs more than waiting.
 #: Lassos no cheaper than the best re-planned one are not re-planned.
@@ -231,8 +234,8 @@ class ObjectStrategy:
         # until the first plan, and beyond the case studies' size throughout (the best bucket then holds hundreds
         # of nodes), uniform picks rarely continue a chain of steps toward a goal: focus on the closest node (see
         # _Tree.select); on small systems the uniform picks after the first plan find the cheaper plans
-        self.first_plan_focus = 0.8
         self.focus = 0.0 if ts.N + ts.M <= FOCUS_ENTITIES else 0.8
+        self.first_plan_focus = max(self.focus, FIRST_PLAN_FOCUS)
         self._cubes: dict[tuple[int, int], CubeGoal] = {}
         self._goals: dict[tuple, Goal | None] = {}
         self._steps: dict[tuple, float] = {}  # cube_steps per (state, cube)

@@ -79,6 +79,21 @@ def test_anytime_costs_fall_to_the_exact_optimum(size, seed):
     assert plan.total_cost == pytest.approx(opt, rel=TOL)
 
 
+def test_a_lasso_is_re_planned_once():
+    """Re-planning depends on a lasso only through its start, NBA sequences and accepting TS state: a second
+    request for the same lasso gives nothing new, a fresh improver the same lasso as the first."""
+    _, ts, _, nba, rel = _setup(3, 1, 3, 0)
+    res = Stylus(ts, nba, rel, seed=3, replan=False).run(50)  # a lasso its own NBA sequences improve on
+    pruned = prune_nba(nba, ts, transit=True)
+    words = ExecutedWords(ts, pruned, rel)
+    improver = LassoImprover(ts, words, pruned)
+    first = improver.improve(res.prefix, res.suffix)
+    assert first is not None and first[2] + first[3] < res.prefix_cost + res.suffix_cost - TOL
+    assert improver.improve(res.prefix, res.suffix) is None
+    again = LassoImprover(ts, words, pruned).improve(res.prefix, res.suffix)
+    assert again is not None and again[:2] == first[:2]
+
+
 def test_replanning_can_be_switched_off():
     _, ts, _, nba, rel = _setup(2, 1, 3, 2)
     res = Stylus(ts, nba, rel, seed=1, replan=False).run(300)

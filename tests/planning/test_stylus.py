@@ -15,7 +15,7 @@ from mrodrake.planning.generate import generate_scenario
 from mrodrake.planning.plan import plan_scenario, task_nba
 from mrodrake.planning.product import Product
 from mrodrake.planning.semantics import relevant_mask
-from mrodrake.planning.stylus import Stylus
+from mrodrake.planning.stylus import FIRST_PLAN_FOCUS, Stylus
 from mrodrake.ts import TransitionSystem
 
 
@@ -30,6 +30,20 @@ def test_case_study_plans_verified(which, request):
     plan = plan_scenario(case.scenario, planner="stylus", seed=3)
     plan.verify(case.ts, case.nba, case.formula)
     assert plan.stats["first_plan_seconds"] is not None
+
+
+def test_small_object_systems_focus_until_the_first_plan(case2):
+    """Case study II (7 entities) focuses the selection until the first plan and picks uniformly afterwards;
+    the focus about halves the iterations to the first plan (uniform picks alone: 697 on average over these
+    seeds, measured)."""
+    its = []
+    for seed in range(5):
+        planner = Stylus(case2.ts.bound_at_home(), case2.nba, case2.relevant, seed=seed)
+        assert planner.focus == FIRST_PLAN_FOCUS > planner.strategy.focus == 0.0
+        res = planner.run(10**9, stop_at_first=True)
+        assert planner.focus == 0.0
+        its.append(res.stats["iterations"])
+    assert np.mean(its) <= 450
 
 
 def test_exact_cost_is_a_lower_bound_case1(case1, case1_exact):
