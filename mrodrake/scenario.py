@@ -506,7 +506,8 @@ def _check_task(s: Scenario, where: Where) -> None:
     sources.append((("task", "formula"), s.task.formula))
     for loc, text in sources:
         src = where(loc)
-        for atom in sorted(atoms(parse(text, macros=macros, source=src, macro_prefix="task.propositions."))):
+        for atom in sorted(atoms(parse(text, macros=macros, source=src,
+                                       macro_source=lambda m: where(("task", "propositions", m))))):
             ent, sep, reg = atom.partition("_")
             if not sep or not ent or not reg:
                 raise UserError(f"{src}: proposition '{atom}' is not of the form <robot>_<region> or "

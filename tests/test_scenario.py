@@ -70,6 +70,17 @@ def test_line_numbers_in_messages():
     assert str(exc.value).startswith(f"tiny.yaml:{line}: robots[1].mass: must be > 0")
 
 
+def test_a_cyclic_macro_is_reported_at_its_line():
+    text = (SCEN / "tiny.yaml").read_text().replace('home: "r1_p1 & r2_p1"', 'home: "away"\n    away: "home"')
+    with pytest.raises(UserError) as exc:
+        parse_scenario(text, source="tiny.yaml")
+    msg = str(exc.value)
+    name = msg.split("task.propositions.", 1)[1].split(":", 1)[0]
+    line = next(i + 1 for i, l in enumerate(text.splitlines()) if l.strip().startswith(f"{name}:"))
+    assert msg.startswith(f"tiny.yaml:{line}: task.propositions.{name}: cyclic macro definition: ")
+    assert {name, "home", "away"} == {"home", "away"}
+
+
 @pytest.mark.parametrize(
     "mutate, fragments",
     [

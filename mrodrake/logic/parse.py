@@ -231,16 +231,18 @@ class _Parser:
 
 
 def parse(text: str, macros: dict[str, str] | None = None, source: str = "formula", *,
-          macro_prefix: str = "") -> Formula:
+          macro_prefix: str = "", macro_source: Callable[[str], str] | None = None) -> Formula:
     """Parse Spot-syntax LTL ``text``; identifiers naming a macro expand to the macro's parsed body.
 
     Syntax errors raise ``UserError("{source}:{col}: ...")`` (1-based column) whose detail is the text and a
-    caret line.  A syntax error inside macro ``m`` is reported with source ``f"{macro_prefix}{m}"`` (e.g.
-    ``macro_prefix="task.propositions."``); cyclic macro definitions raise a UserError naming the cycle.
+    caret line.  An error inside macro ``m`` is reported with source ``macro_source(m)`` if given (e.g. the
+    macro's file and line), else ``f"{macro_prefix}{m}"`` (e.g. ``macro_prefix="task.propositions."``); cyclic
+    macro definitions raise a UserError naming the cycle.
     """
     if not isinstance(text, str):
         raise UserError(f"{source}: formula must be a string, got {type(text).__name__}")
     macros = macros or {}
+    where = macro_source or (lambda name: f"{macro_prefix}{name}")
     cache: dict[str, Formula] = {}
     stack: list[str] = []
 
@@ -249,14 +251,14 @@ def parse(text: str, macros: dict[str, str] | None = None, source: str = "formul
             return cache[name]
         if name in stack:
             cycle = stack[stack.index(name):] + [name]
-            raise UserError(f"{macro_prefix}{cycle[0]}: cyclic macro definition: {' -> '.join(cycle)}")
+            raise UserError(f"{where(cycle[0])}: cyclic macro definition: {' -> '.join(cycle)}")
         body = macros[name]
         if not isinstance(body, str):
-            raise UserError(f"{macro_prefix}{name}: macro body must be a string, got {type(body).__name__}")
+            raise UserError(f"{where(name)}: macro body must be a string, got {type(body).__name__}")
         if len(stack) >= MAX_DEPTH:
-            raise UserError(f"{macro_prefix}{name}: macros nested deeper than {MAX_DEPTH} levels")
+            raise UserError(f"{where(name)}: macros nested deeper than {MAX_DEPTH} levels")
         stack.append(name)
-        f = _Parser(body, f"{macro_prefix}{name}", resolve).parse()
+        f = _Parser(body, where(name), resolve).parse()
         stack.pop()
         cache[name] = f
         return f
