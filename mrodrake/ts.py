@@ -327,6 +327,11 @@ class TransitionSystem:
         self._carry[j] = C
         return C
 
+    def team_size_note(self, r: float) -> str:
+        """What a team of smallest covering radius ``r`` needs of a region, for messages."""
+        return (f"smallest covering radius {r:.2f} m; with the {self.spacing:g} m spacing to the rim it needs a "
+                f"region radius above {r + self.spacing:.2f} m")
+
     def unreachable(self) -> list[str]:
         """One line per entity that can never reach some region from where it starts: robots by their
         radius, objects by :meth:`carry_connections` (regions where no strong-enough team fits first)."""
@@ -343,13 +348,12 @@ class TransitionSystem:
             r = self.smallest_team_radius(j)
             if r is None:
                 continue
+            size = self.team_size_note(r)
             if not any(self.region_fits(m, [r]) for m in range(self.K)):
                 out.append(f"object {self.object_names[j]} can never be carried: no team strong enough fits "
-                           f"in any region (smallest covering radius {r:.2f} m, largest "
-                           f"region radius {max(self.region_radius):.2f} m)")
+                           f"in any region ({size}, largest region radius {max(self.region_radius):.2f} m)")
                 continue
             unfit = [m for m in range(self.K) if not self.region_fits(m, [r])]
-            size = f"smallest covering radius {r:.2f} m"
             if k in unfit:
                 out.append(f"object {self.object_names[j]} can never be carried: no team strong enough fits in "
                            f"its region {names[k]} ({size}, region radius {self.region_radius[k]:.2f} m)")

@@ -132,13 +132,14 @@ def test_a_team_larger_than_every_region_is_named_as_the_cause(tmp_path, capsys)
     assert cli.main(["validate", str(path)]) == 0
     out = capsys.readouterr().out.strip().splitlines()
     assert out[1:] == [f"{path}: object o1 can never be carried: no team strong enough fits in any region "
-                       "(smallest covering radius 1.90 m, largest region radius 1.85 m)"]
+                       "(smallest covering radius 1.90 m; with the 0.1 m spacing to the rim it needs a region radius "
+                       "above 2.00 m, largest region radius 1.85 m)"]
     with pytest.raises(UserError) as e:
         plan_scenario(scenario_from_dict(data), iterations=50)
     msg = str(e.value)
     assert msg.startswith("task is unsatisfiable: object o1 must leave region p1") and "\n" not in msg
-    assert msg.endswith("no team strong enough fits in any region (smallest covering radius 1.90 m, largest region "
-                        "radius 1.85 m)")
+    assert msg.endswith("no team strong enough fits in any region (smallest covering radius 1.90 m; with the 0.1 m "
+                        "spacing to the rim it needs a region radius above 2.00 m, largest region radius 1.85 m)")
 
 
 @pytest.mark.parametrize("where", ["start", "goal"])

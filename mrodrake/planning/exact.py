@@ -107,8 +107,8 @@ def check_power(ts: TransitionSystem, nba: NBA) -> None:
     why = ""
     best = ts.smallest_team(j)
     if best is not None:  # strong teams exist, but none fits in a region with the object
-        why = (f"; no team strong enough fits in any region (smallest covering radius "
-               f"{best[1]:.2f} m, largest region radius {max(ts.region_radius):.2f} m)")
+        why = (f"; no team strong enough fits in any region ({ts.team_size_note(best[1])}, largest region radius "
+               f"{max(ts.region_radius):.2f} m)")
     raise UserError(
         f"task is unsatisfiable: object {ts.object_names[j]} must leave region "
         f"{ts.region_names[init[N + j]]} but needs power {ts.required_power[j]:g} and the maximum team "
