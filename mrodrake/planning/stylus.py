@@ -879,8 +879,11 @@ class Stylus:
         pre = _Tree(self, ts.initial, self.nba.initial, self.d_prefix)
         self.prefix_tree = pre
         if not pre.expandable:
-            raise UserError("task is unsatisfiable: from the initial state's label the NBA can only move to "
-                            "states without a reachable accepting cycle (searched the pruned NBA)")
+            mask = ts.label_mask(ts.initial) & self.strategy.relevant
+            true = [p for b, p in enumerate(ts.propositions) if mask >> b & 1]
+            label = f"{', '.join(true)} true" if true else "no task proposition true"
+            raise UserError(f"task is unsatisfiable: from the initial state's label ({label}) the NBA can only move "
+                            "to states without a reachable accepting cycle (searched the pruned NBA)")
         if pre.n_q[0] in self.acc:
             self._new_accepting.append(0)
         candidates: list[int] = []  # accepting prefix nodes

@@ -16,6 +16,7 @@ from mrodrake.planning.plan import plan_scenario, task_nba
 from mrodrake.planning.product import Product
 from mrodrake.planning.semantics import relevant_mask
 from mrodrake.planning.stylus import FIRST_PLAN_FOCUS, Stylus
+from mrodrake.scenario import parse_scenario
 from mrodrake.ts import TransitionSystem
 
 
@@ -44,6 +45,13 @@ def test_small_object_systems_focus_until_the_first_plan(case2):
         assert planner.focus == 0.0
         its.append(res.stats["iterations"])
     assert np.mean(its) <= 450
+
+
+def test_a_safety_clause_broken_at_the_start_is_named(tiny):
+    text = tiny.path.read_text().replace('formula: "F G o1_p3 & G F home"', 'formula: "G !r1_p1 & F r2_p3"')
+    with pytest.raises(UserError) as exc:
+        plan_scenario(parse_scenario(text, source="tiny.yaml"), iterations=50)
+    assert str(exc.value).startswith("task is unsatisfiable: from the initial state's label (r1_p1 true) ")
 
 
 def test_exact_cost_is_a_lower_bound_case1(case1, case1_exact):
