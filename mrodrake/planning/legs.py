@@ -268,8 +268,8 @@ class LassoImprover:
         free: the cheapest such state s') and the cycle through s'; when that gives no cheaper lasso, prefix and
         cycle through s_a itself."""
         a = suffix[0]
-        cycle_seq = nba_sequence(suffix + [a])
-        key = (prefix[0][0] if prefix else None, tuple(nba_sequence(prefix + [a])), tuple(cycle_seq), a[0])
+        prefix_seq, cycle_seq = nba_sequence(prefix + [a]), nba_sequence(suffix + [a])
+        key = (prefix[0][0] if prefix else None, tuple(prefix_seq), tuple(cycle_seq), a[0])
         if key in self._done:
             return None
         self._done.add(key)
@@ -281,12 +281,11 @@ class LassoImprover:
             if not prefix:
                 yield 0.0, [a]
                 return
-            seq = nba_sequence(prefix + [a])
-            free = replan(*run, prefix[0][0], seq, a[0], pc, *limits, any_grasps=True)
+            free = replan(*run, prefix[0][0], prefix_seq, a[0], pc, *limits, any_grasps=True)
             if free is not None:
                 yield free
             if free is None or free[1][-1][0] != a[0]:
-                fixed = replan(*run, prefix[0][0], seq, a[0], pc, *limits)
+                fixed = replan(*run, prefix[0][0], prefix_seq, a[0], pc, *limits)
                 yield fixed if fixed is not None else (pc, prefix + [a])
 
         for new_pc, path in prefixes():

@@ -977,11 +977,12 @@ class Stylus:
                 if first_seconds is None:
                     first_seconds = elapsed
                     self.focus = self.strategy.focus
-                if not replanned or best[0] < replanned[0] - 1e-9:
+                lowest = not replanned or best[0] < replanned[0] - 1e-9  # below every re-planned lasso
+                if lowest:
                     history.append((elapsed, it, best[0]))
                 if stop_at_first:
                     break
-                if self.improver is not None and (not replanned or best[0] < replanned[0] - 1e-9):
+                if self.improver is not None and lowest:
                     if pending is None:
                         last_improve = it
                     pending = best
