@@ -38,6 +38,7 @@ from scipy.spatial import cKDTree
 from shapely.geometry import MultiPolygon, Polygon
 from shapely.geometry.polygon import orient
 
+from mrodrake.control.hodlr import MAX_STEPS, BorderedPreconditioner
 from mrodrake.control.treecode import PanelTree, build_tree, in_row_blocks
 from mrodrake.errors import UserError
 
@@ -55,6 +56,9 @@ _RIDGE_OFFSETS = (0.0625, 0.125, 0.25, 0.5)  # inward steps (x panel length) sea
 #: Error bounds of the treecode on H, on every entry of J_H and on every second derivative
 #: (:mod:`mrodrake.control.treecode`; the direct sum over all panels is the reference).
 TREE_TOLERANCES = (5e-10, 5e-8, 5e-6)
+#: Panels from which the system is solved with the hierarchical preconditioner of :mod:`mrodrake.control.hodlr`
+#: (below, a dense float32 LU with refinement is as fast).
+HIERARCHICAL_PANELS = 1024
 
 
 @dataclass
@@ -379,9 +383,9 @@ def _kernel_values(x, y, vx, vy, tx, ty, L):
     return W
 
 
-def _assemble(mx, my, vx, vy, tx, ty, L, col, M, M32) -> float:
+def _assemble(mx, my, vx, vy, tx, ty, L, col, M, M32=None) -> float:
     """M[i, col[l]] = W of link l at point i (the closed form of ``_kernel_values``) for every real link
-    (col[l] ≥ 0; consecutive within a ring), written to the float64 ``M`` and its float32 copy ``M32``; returns
+    (col[l] ≥ 0; consecutive within a ring), written to the float64 ``M`` and its float32 copy ``M32`` if given; returns
     the largest |W|.  Blocks of rows run on threads of their own (the compiled kernel releases the GIL; a pool
     per call, so a forked process can assemble too); every entry is computed on its own, so the result does not
     depend on the number of threads."""
@@ -390,15 +394,17 @@ def _assemble(mx, my, vx, vy, tx, ty, L, col, M, M32) -> float:
     starts = np.flatnonzero(real[1:] & ~real[:-1])
     ends = np.flatnonzero(real[:-1] & ~real[1:])
     runs = np.column_stack([starts, ends, col[starts]]).astype(np.int64)  # first link, end, first column
-    return max(in_row_blocks(_assemble_rows, n, 256, mx, my, vx, vy, tx, ty, L, runs, M, M32))
+    copy32 = M32 is not None
+    return max(in_row_blocks(_assemble_rows, n, 256, mx, my, vx, vy, tx, ty, L, runs, M,
+                             M32 if copy32 else M[:1, :1].astype(np.float32), copy32))
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _assemble_rows(i0, i1, mx, my, vx, vy, tx, ty, L, runs, M, M32):
-    """Rows i0 .. i1 − 1 of :func:`_assemble` (``runs``: first link, one-past-last link and first column of
-    every run of real links); returns their largest |W|.  Per row, ln r² and the angle of x − v at every
-    vertex v come from :func:`_vertex_logs_angles`, θ of a link from the angles at its ends, wrapped to
-    (−π, π]."""
+def _assemble_rows(i0, i1, mx, my, vx, vy, tx, ty, L, runs, M, M32, copy32):
+    """Rows i0 .. i1 − 1 of :func:`_assemble`, also written to ``M32`` if ``copy32`` (``runs``: first link,
+    one-past-last link and first column of every run of real links); returns their largest |W|.  Per row,
+    ln r² and the angle of x − v at every vertex v come from :func:`_vertex_logs_angles`, θ of a link from the
+    angles at its ends, wrapped to (−π, π]."""
     nv = len(vx)
     lr = np.empty(nv)
     ang = np.empty(nv)
@@ -422,10 +428,12 @@ def _assemble_rows(i0, i1, mx, my, vx, vy, tx, ty, L, runs, M, M32):
             count = runs[q, 1] - runs[q, 0]
             src = wk[runs[q, 0] : runs[q, 1]]
             row = M[i, runs[q, 2] : runs[q, 2] + count]
-            row32 = M32[i, runs[q, 2] : runs[q, 2] + count]
             for t in range(count):
                 row[t] = src[t]
-                row32[t] = src[t]
+            if copy32:
+                row32 = M32[i, runs[q, 2] : runs[q, 2] + count]
+                for t in range(count):
+                    row32[t] = src[t]
             for t in range(count):
                 big = max(big, abs(src[t]))
     return big
@@ -603,6 +611,56 @@ def _solve_refined(M: np.ndarray, rhs: np.ndarray, m32: np.ndarray | None = None
         if np.all(np.isfinite(x)) and np.abs(_residual(M, x, rhs)).max() <= 1e-11 * scale:
             return x
     return scipy.linalg.lu_solve(scipy.linalg.lu_factor(M, check_finite=False), rhs, check_finite=False)
+
+
+def _system(panels, n_holes: int, M: np.ndarray, M32: np.ndarray | None) -> tuple[np.ndarray, float]:
+    """Fill ``M`` (and the panel block of its float32 copy ``M32`` if given) with the system of one
+    discretisation (``PointWorldMap._panels``): collocation rows u = Σ σ_j W_j + c with u = b_ℓ on hole ℓ,
+    then one zero-charge row per hole and the zero-total-charge row; unknowns σ, b_ℓ, c.  Returns the two
+    right-hand sides (the unit circle on the outer boundary) and the largest |entry| of M."""
+    perimeter, a_xy, b_xy, rid, s_a, s_b = panels
+    n = len(a_xy)
+    v, L_link, tx, ty, real = _chain(a_xy, b_xy, rid)
+    L = L_link[real]
+    mid = 0.5 * (a_xy + b_xy)
+    M[:, n:] = 0.0
+    M[n:, :n] = 0.0
+    col = np.where(real, np.cumsum(real) - 1, -1)  # the real links are the panels, in order
+    big = _assemble(np.ascontiguousarray(mid[:, 0]), np.ascontiguousarray(mid[:, 1]),
+                    np.ascontiguousarray(v[:, 0]), np.ascontiguousarray(v[:, 1]), tx, ty, L_link, col, M, M32)
+    hole_of_panel = rid - 1
+    on_hole = np.flatnonzero(hole_of_panel >= 0)
+    M[on_hole, n + hole_of_panel[on_hole]] = -1.0  # u = b_ℓ on hole ℓ
+    M[:n, n + n_holes] = 1.0  # the constant c
+    M[n + hole_of_panel[on_hole], on_hole] = L[on_hole]  # zero charge per hole
+    M[n + n_holes, :n] = L  # zero total charge
+    ext = np.flatnonzero(rid == 0)
+    theta = 2.0 * np.pi * (0.5 * (s_a + s_b)[ext]) / perimeter
+    rhs = np.zeros((n + n_holes + 1, 2))
+    rhs[ext, 0] = np.cos(theta)
+    rhs[ext, 1] = np.sin(theta)
+    return rhs, max(big, 1.0, float(L.max()))  # |W|, the ±1 of b_ℓ and c, the L_j
+
+
+def _solve_hierarchical(M: np.ndarray, rhs: np.ndarray, n: int, points: np.ndarray,
+                        scale_m: float) -> np.ndarray | None:
+    """Solve M X = rhs (n panels at ``points``, then the border) to float64 accuracy by iterative refinement
+    preconditioned with :class:`~mrodrake.control.hodlr.BorderedPreconditioner`; None if that does not reach
+    the accuracy of :func:`_solve_refined` within :data:`~mrodrake.control.hodlr.MAX_STEPS` steps."""
+    try:
+        pre = BorderedPreconditioner(M, n, points)
+    except np.linalg.LinAlgError:
+        return None
+    x = pre(rhs)
+    scale = scale_m * np.abs(x).max() + np.abs(rhs).max()
+    if not math.isfinite(scale):
+        return None
+    for _ in range(MAX_STEPS):
+        r = _residual(M, x, rhs)
+        if np.abs(r).max() <= 1e-13 * scale:
+            return x
+        x += pre(r)
+    return None
 
 
 def _residual(M: np.ndarray, x: np.ndarray, rhs: np.ndarray) -> np.ndarray:
@@ -803,40 +861,28 @@ class PointWorldMap:
 
     @classmethod
     def _solve(cls, poly, panels):
-        """Solve for the panel charges of one discretisation (``_panels``)."""
+        """Solve for the panel charges of one discretisation (``_panels``): by iterative refinement with the
+        hierarchical preconditioner from :data:`HIERARCHICAL_PANELS` panels on, else (or if that does not
+        converge) by :func:`_solve_refined`."""
         t0 = time.perf_counter()
         perimeter, a_xy, b_xy, rid, s_a, s_b = panels
         n = len(a_xy)
         n_holes = len(poly.interiors)
-        v, L_link, tx, ty, real = _chain(a_xy, b_xy, rid)
-        L = L_link[real]
-        mid = 0.5 * (a_xy + b_xy)
-        size = n + n_holes + 1
-        M, M32 = _workspace(size)  # M32: M's float32 copy for the LU, filled while cache-hot
-        M[:, n:] = 0.0
-        M[n:, :n] = 0.0
-        col = np.where(real, np.cumsum(real) - 1, -1)  # the real links are the panels, in order
-        big = _assemble(np.ascontiguousarray(mid[:, 0]), np.ascontiguousarray(mid[:, 1]),
-                        np.ascontiguousarray(v[:, 0]), np.ascontiguousarray(v[:, 1]), tx, ty, L_link, col, M, M32)
-        hole_of_panel = rid - 1
-        on_hole = hole_of_panel >= 0
-        M[np.flatnonzero(on_hole), n + hole_of_panel[on_hole]] = -1.0  # u = b_ℓ on hole ℓ
-        M[:n, n + n_holes] = 1.0  # the constant c
-        M[n + hole_of_panel[on_hole], np.flatnonzero(on_hole)] = L[on_hole]  # zero charge per hole
-        M[n + n_holes, :n] = L  # zero total charge
-        ext = ~on_hole
-        theta = 2.0 * np.pi * (0.5 * (s_a + s_b)[ext]) / perimeter
-        rhs = np.zeros((size, 2))
-        rhs[np.flatnonzero(ext), 0] = np.cos(theta)
-        rhs[np.flatnonzero(ext), 1] = np.sin(theta)
-        M32[:, n:] = M[:, n:]
-        M32[n:, :n] = M[n:, :n]
-        sol = _solve_refined(M, rhs, M32, max(big, 1.0, float(L.max())))  # |W|, the ±1 of b_ℓ and c, the L_j
-        sigma = sol[:n]
-        holes = sol[n : n + n_holes]
-        const = sol[n + n_holes]
+        M, M32 = _workspace(n + n_holes + 1)  # M32: M's float32 copy for a dense LU, filled while cache-hot
+        hierarchical = n >= HIERARCHICAL_PANELS
+        rhs, scale_m = _system(panels, n_holes, M, None if hierarchical else M32)
+        sol = _solve_hierarchical(M, rhs, n, 0.5 * (a_xy + b_xy), scale_m) if hierarchical else None
+        if sol is None:
+            if hierarchical:
+                M32[:] = M
+            else:
+                M32[:, n:] = M[:, n:]
+                M32[n:, :n] = M[n:, :n]
+            sol = _solve_refined(M, rhs, M32, scale_m)
+        ext = rid == 0
         exterior_param = (s_a[ext], s_b[ext], perimeter)
-        return cls(a_xy, b_xy, rid, sigma, holes, const, poly, exterior_param, time.perf_counter() - t0)
+        return cls(a_xy, b_xy, rid, sol[:n], sol[n : n + n_holes], sol[n + n_holes], poly, exterior_param,
+                   time.perf_counter() - t0)
 
     # ------------------------------------------------------------------ properties
     @property

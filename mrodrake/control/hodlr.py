@@ -1,0 +1,266 @@
+"""Hierarchical (HODLR) preconditioner of the boundary-element system of :mod:`mrodrake.control.pointworld`.
+
+The system is [[M, B], [C, 0]]: the panel block M (M_ij = W_j at the midpoint of panel i), the border B, C of
+one unknown b_ℓ and one zero-charge row per hole, the constant c and the total-charge row Lᵀσ = 0.  After the
+panels are ordered by recursive bisection of their midpoints, the block coupling two sibling clusters has low
+numerical rank (the log kernel is smooth between them).  Each such block is compressed by adaptive cross
+approximation (partial pivoting) to relative accuracy ``tol``, and the inverse of every cluster's block follows
+from its children's by the Woodbury identity, leaves up: O(n k² log n) for ranks k (Ambikasaran and Darve,
+J. Sci. Comput. 2013).  The border is eliminated by its Schur complement.
+
+Shift: the kernel is approximated as ln(|x − y|² / s²) with s twice the panels' extent, i.e. M' = M − g 1 Lᵀ,
+g = ln s².  It is negative on every pair of panels, so no cluster sees a log kernel on a curve of logarithmic
+capacity 1 (where the single layer is singular).  The total-charge row makes the systems equivalent:
+M σ + c 1 = M' σ + c' 1 with c' = c + g Lᵀσ.
+
+The approximate inverse only preconditions iterative refinement against the exact float64 system
+(:func:`solve`), so the result is as accurate as a dense solve.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from numba import njit
+from scipy.linalg import get_lapack_funcs
+
+#: Panels per leaf cluster at most.
+LEAF = 128
+#: Relative accuracy of the compressed sibling blocks.  Each refinement step gains about this factor, so 1e-6
+#: needs two or three steps to the float64 tolerance; a tighter one raises the ranks (41 -> 64 at the top of
+#: case study I's navigation maps for 1e-8) more than it saves steps.
+TOL = 1e-6
+#: Refinement steps before the solve gives up (the caller then solves densely).
+MAX_STEPS = 8
+
+
+@njit(cache=True, nogil=True, fastmath={"reassoc", "contract"})
+def _aca(M, rows, cols, shift, tol):
+    """Cross approximation U Vᵀ of the block (M[rows[i], cols[j]] − shift[cols[j]]) with partial pivoting:
+    stops after two consecutive crosses |u| |v| ≤ tol ‖U Vᵀ‖_F (or at full rank).  Returns Uᵀ and Vᵀ."""
+    m1, m2 = len(rows), len(cols)
+    cap = min(m1, m2)
+    room = min(cap, 32)
+    Ut = np.empty((room, m1))
+    Vt = np.empty((room, m2))
+    used = np.zeros(m1, dtype=np.bool_)
+    row = np.empty(m2)
+    col = np.empty(m1)
+    k = 0
+    i = 0
+    norm2 = 0.0
+    small = 0
+    while k < cap:
+        used[i] = True
+        ri = rows[i]
+        for j in range(m2):
+            row[j] = M[ri, cols[j]] - shift[cols[j]]
+        for q in range(k):
+            a = Ut[q, i]
+            vq = Vt[q]
+            for j in range(m2):
+                row[j] -= a * vq[j]
+        jb = 0
+        best = 0.0
+        for j in range(m2):
+            if abs(row[j]) > best:
+                best = abs(row[j])
+                jb = j
+        if best == 0.0:  # this row is reproduced exactly: try an unused one
+            i = -1
+            for r in range(m1):
+                if not used[r]:
+                    i = r
+                    break
+            if i < 0:
+                break
+            continue
+        if k == room:
+            room = min(cap, 2 * room)
+            grown = np.empty((room, m1))
+            grown[:k] = Ut[:k]
+            Ut = grown
+            grown = np.empty((room, m2))
+            grown[:k] = Vt[:k]
+            Vt = grown
+        piv = row[jb]
+        cj = cols[jb]
+        vk = Vt[k]
+        for j in range(m2):
+            vk[j] = row[j] / piv
+        for r in range(m1):
+            col[r] = M[rows[r], cj] - shift[cj]
+        for q in range(k):
+            b = Vt[q, jb]
+            uq = Ut[q]
+            for r in range(m1):
+                col[r] -= b * uq[r]
+        uk = Ut[k]
+        nu = 0.0
+        nv = 0.0
+        for r in range(m1):
+            uk[r] = col[r]
+            nu += col[r] * col[r]
+        for j in range(m2):
+            nv += vk[j] * vk[j]
+        cross = 0.0
+        for q in range(k):
+            su = 0.0
+            sv = 0.0
+            uq = Ut[q]
+            vq = Vt[q]
+            for r in range(m1):
+                su += uq[r] * col[r]
+            for j in range(m2):
+                sv += vq[j] * vk[j]
+            cross += su * sv
+        norm2 += nu * nv + 2.0 * cross
+        k += 1
+        if nu * nv <= tol * tol * norm2:
+            small += 1
+            if small >= 2:
+                break
+        else:
+            small = 0
+        i = -1
+        best = -1.0
+        for r in range(m1):
+            if not used[r] and abs(col[r]) > best:
+                best = abs(col[r])
+                i = r
+        if i < 0:
+            break
+    return Ut[:k].copy(), Vt[:k].copy()
+
+
+@dataclass
+class _Cluster:
+    """Panels ``order[lo:hi]``; an inner cluster splits at ``mid`` into the clusters ``left`` and ``right``, and
+    its subtree starts at ``first`` in the post-order list.  ``lu``: LAPACK LU factors (and pivots) of a leaf's
+    block, or of an inner cluster's Woodbury capacitance matrix K = [[I, V1ᵀ Y2], [V2ᵀ Y1, I]], with the sibling
+    blocks U1 V1ᵀ (rows lo:mid, columns mid:hi) and U2 V2ᵀ, Y1 = A_left⁻¹ U1 and Y2 = A_right⁻¹ U2."""
+
+    lo: int
+    hi: int
+    first: int
+    mid: int = -1
+    left: int = -1
+    right: int = -1
+    lu: tuple | None = None
+    U1: np.ndarray | None = None
+    V1: np.ndarray | None = None
+    U2: np.ndarray | None = None
+    V2: np.ndarray | None = None
+    Y1: np.ndarray | None = None
+    Y2: np.ndarray | None = None
+
+
+def _bisect(points: np.ndarray, idx: np.ndarray, lo: int, leaf: int, out: list, order: list) -> int:
+    """Post-order clusters of ``idx`` (from position lo on), halved at the median along the longer side of
+    their bounding box; returns the index of the cluster of ``idx``."""
+    first = len(out)
+    if len(idx) <= leaf:
+        order.append(idx)
+        out.append(_Cluster(lo, lo + len(idx), first))
+        return first
+    pts = points[idx]
+    axis = int(np.argmax(pts.max(axis=0) - pts.min(axis=0)))
+    srt = idx[np.argsort(pts[:, axis], kind="stable")]
+    half = len(srt) // 2
+    left = _bisect(points, srt[:half], lo, leaf, out, order)
+    right = _bisect(points, srt[half:], lo + half, leaf, out, order)
+    out.append(_Cluster(lo, lo + len(srt), first, mid=lo + half, left=left, right=right))
+    return len(out) - 1
+
+
+class HodlrInverse:
+    """Approximate inverse of the shifted panel block M' = M − g 1 Lᵀ (see the module docstring)."""
+
+    def __init__(self, M: np.ndarray, points: np.ndarray, lengths: np.ndarray, *, leaf: int | None = None,
+                 tol: float | None = None):
+        leaf = LEAF if leaf is None else leaf
+        tol = TOL if tol is None else tol
+        if leaf < 2 or not tol > 0.0:
+            raise ValueError(f"need leaf >= 2 and tol > 0, got {leaf}, {tol}")
+        n = len(points)
+        ext = points.max(axis=0) - points.min(axis=0)
+        self.g = 2.0 * math.log(2.0 * max(float(np.hypot(ext[0], ext[1])), 1e-300))
+        self.shift = self.g * np.asarray(lengths, dtype=float)
+        clusters: list[_Cluster] = []
+        order: list[np.ndarray] = []
+        _bisect(np.asarray(points, dtype=float), np.arange(n), 0, leaf, clusters, order)
+        self.order = np.concatenate(order)
+        self.clusters = clusters
+        self.n = n
+        perm = self.order
+        self._getrf, self._getrs = get_lapack_funcs(("getrf", "getrs"), (M,))
+        for cl in clusters:
+            if cl.mid < 0:
+                idx = perm[cl.lo : cl.hi]
+                cl.lu = self._factor(M[np.ix_(idx, idx)] - self.shift[idx][None, :])
+                continue
+            a, b = perm[cl.lo : cl.mid], perm[cl.mid : cl.hi]
+            u1, v1 = _aca(M, a, b, self.shift, tol)
+            u2, v2 = _aca(M, b, a, self.shift, tol)
+            cl.U1, cl.V1, cl.U2, cl.V2 = u1.T, v1.T, u2.T, v2.T
+            cl.Y1 = self._apply(cl.left, cl.U1.copy(), cl.lo)
+            cl.Y2 = self._apply(cl.right, cl.U2.copy(), cl.mid)
+            k1, k2 = cl.U1.shape[1], cl.U2.shape[1]
+            K = np.eye(k1 + k2)
+            K[:k1, k1:] = cl.V1.T @ cl.Y2
+            K[k1:, :k1] = cl.V2.T @ cl.Y1
+            cl.lu = self._factor(K)
+
+    def _factor(self, A: np.ndarray) -> tuple:
+        lu, piv, info = self._getrf(A, overwrite_a=True)
+        if info != 0:
+            raise np.linalg.LinAlgError("singular cluster block")
+        return lu, piv
+
+    def _apply(self, top: int, X: np.ndarray, lo: int) -> np.ndarray:
+        """A⁻¹ X in place for the cluster ``clusters[top]`` (X: its rows in cluster order, from position lo)."""
+        for cl in self.clusters[self.clusters[top].first : top + 1]:
+            if cl.mid < 0:
+                X[cl.lo - lo : cl.hi - lo] = self._getrs(*cl.lu, X[cl.lo - lo : cl.hi - lo])[0]
+                continue
+            x1 = X[cl.lo - lo : cl.mid - lo]
+            x2 = X[cl.mid - lo : cl.hi - lo]
+            k1 = cl.V1.shape[1]
+            w = self._getrs(*cl.lu, np.concatenate([cl.V1.T @ x2, cl.V2.T @ x1]))[0]
+            x1 -= cl.Y1 @ w[:k1]
+            x2 -= cl.Y2 @ w[k1:]
+        return X
+
+    def apply(self, R: np.ndarray) -> np.ndarray:
+        """M'⁻¹ R (R: (n, m), panel order) approximately."""
+        X = self._apply(len(self.clusters) - 1, R[self.order].copy(), 0)
+        out = np.empty_like(X)
+        out[self.order] = X
+        return out
+
+
+class BorderedPreconditioner:
+    """Approximate inverse of the whole system [[M, B], [C, 0]] (n panels, then the border unknowns; the last
+    border unknown is c and the last row Lᵀσ = 0): the HODLR inverse of M', the Schur complement of the
+    border, and the change c = c' − g Lᵀσ."""
+
+    def __init__(self, M: np.ndarray, n: int, points: np.ndarray, **options):
+        lengths = M[-1, :n]
+        self.inner = HodlrInverse(M, points, lengths, **options)
+        self.n = n
+        self.lengths = lengths
+        self.C = M[n:, :n]
+        self.Z = self.inner.apply(M[:n, n:])  # M'⁻¹ B
+        self.S_inv = np.linalg.inv(-(self.C @ self.Z))
+
+    def __call__(self, R: np.ndarray) -> np.ndarray:
+        n = self.n
+        y = self.inner.apply(R[:n])
+        x2 = self.S_inv @ (R[n:] - self.C @ y)
+        x = np.empty_like(R)
+        x[:n] = y - self.Z @ x2
+        x[n:] = x2
+        x[-1] -= self.inner.g * (self.lengths @ x[:n])
+        return x
