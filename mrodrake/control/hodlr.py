@@ -28,10 +28,11 @@ from scipy.linalg import get_lapack_funcs
 
 #: Panels per leaf cluster at most.
 LEAF = 128
-#: Relative accuracy of the compressed sibling blocks.  Each refinement step gains about this factor, so 1e-6
-#: needs two or three steps to the float64 tolerance; a tighter one raises the ranks (41 -> 64 at the top of
-#: case study I's navigation maps for 1e-8) more than it saves steps.
-TOL = 1e-6
+#: Relative accuracy asked of the cross approximations (partial pivoting underestimates its error: the
+#: preconditioned refinement gains about 1e-4 per step with 1e-7, two steps to the float64 bound on case study
+#: I's maps).  On those maps 1e-6 needed four steps (two more passes over M) and 1e-8 one step but larger ranks,
+#: each a few per cent slower in all.
+TOL = 1e-7
 #: Refinement steps before the solve gives up (the caller then solves densely).
 MAX_STEPS = 8
 
@@ -137,18 +138,17 @@ def _aca(M, rows, cols, shift, tol):
 
 @dataclass
 class _Cluster:
-    """Panels ``order[lo:hi]``; an inner cluster splits at ``mid`` into the clusters ``left`` and ``right``, and
-    its subtree starts at ``first`` in the post-order list.  ``lu``: LAPACK LU factors (and pivots) of a leaf's
-    block, or of an inner cluster's Woodbury capacitance matrix K = [[I, V1ᵀ Y2], [V2ᵀ Y1, I]], with the sibling
-    blocks U1 V1ᵀ (rows lo:mid, columns mid:hi) and U2 V2ᵀ, Y1 = A_left⁻¹ U1 and Y2 = A_right⁻¹ U2."""
+    """Panels ``order[lo:hi]``; an inner cluster splits at ``mid`` into the clusters ``left`` and ``right``.
+    ``inv``: the inverse of a leaf's block, or of an inner cluster's Woodbury capacitance matrix
+    K = [[I, V1ᵀ Y2], [V2ᵀ Y1, I]], with the sibling blocks U1 V1ᵀ (rows lo:mid, columns mid:hi) and U2 V2ᵀ,
+    Y1 = A_left⁻¹ U1 and Y2 = A_right⁻¹ U2."""
 
     lo: int
     hi: int
-    first: int
     mid: int = -1
     left: int = -1
     right: int = -1
-    lu: tuple | None = None
+    inv: np.ndarray | None = None
     U1: np.ndarray | None = None
     V1: np.ndarray | None = None
     U2: np.ndarray | None = None
@@ -160,26 +160,29 @@ class _Cluster:
 def _bisect(points: np.ndarray, idx: np.ndarray, lo: int, leaf: int, out: list, order: list) -> int:
     """Post-order clusters of ``idx`` (from position lo on), halved at the median along the longer side of
     their bounding box; returns the index of the cluster of ``idx``."""
-    first = len(out)
     if len(idx) <= leaf:
         order.append(idx)
-        out.append(_Cluster(lo, lo + len(idx), first))
-        return first
+        out.append(_Cluster(lo, lo + len(idx)))
+        return len(out) - 1
     pts = points[idx]
     axis = int(np.argmax(pts.max(axis=0) - pts.min(axis=0)))
     srt = idx[np.argsort(pts[:, axis], kind="stable")]
     half = len(srt) // 2
     left = _bisect(points, srt[:half], lo, leaf, out, order)
     right = _bisect(points, srt[half:], lo + half, leaf, out, order)
-    out.append(_Cluster(lo, lo + len(srt), first, mid=lo + half, left=left, right=right))
+    out.append(_Cluster(lo, lo + len(srt), mid=lo + half, left=left, right=right))
     return len(out) - 1
 
 
 class HodlrInverse:
-    """Approximate inverse of the shifted panel block M' = M − g 1 Lᵀ (see the module docstring)."""
+    """Approximate inverse of the shifted panel block M' = M − g 1 Lᵀ (see the module docstring).
 
-    def __init__(self, M: np.ndarray, points: np.ndarray, lengths: np.ndarray, *, leaf: int | None = None,
-                 tol: float | None = None):
+    The factorisation solves, leaves up, for every cluster at once the columns of all sibling blocks above it
+    (each leaf's rows of them, stacked) and those of ``extra`` (n, m), whose solve M'⁻¹ extra is kept as
+    ``solved_extra``: every cluster is visited once."""
+
+    def __init__(self, M: np.ndarray, points: np.ndarray, lengths: np.ndarray, extra: np.ndarray | None = None,
+                 *, leaf: int | None = None, tol: float | None = None):
         leaf = LEAF if leaf is None else leaf
         tol = TOL if tol is None else tol
         if leaf < 2 or not tol > 0.0:
@@ -191,51 +194,72 @@ class HodlrInverse:
         clusters: list[_Cluster] = []
         order: list[np.ndarray] = []
         _bisect(np.asarray(points, dtype=float), np.arange(n), 0, leaf, clusters, order)
-        self.order = np.concatenate(order)
+        self.order = perm = np.concatenate(order)
         self.clusters = clusters
-        self.n = n
-        perm = self.order
-        self._getrf, self._getrs = get_lapack_funcs(("getrf", "getrs"), (M,))
-        for cl in clusters:
+        self._getrf, self._getri = get_lapack_funcs(("getrf", "getri"), (M,))
+        parent = np.full(len(clusters), -1)
+        for k, cl in enumerate(clusters):
+            if cl.mid >= 0:
+                parent[cl.left] = parent[cl.right] = k
+                a, b = perm[cl.lo : cl.mid], perm[cl.mid : cl.hi]
+                u1, v1 = _aca(M, a, b, self.shift, tol)
+                u2, v2 = _aca(M, b, a, self.shift, tol)
+                cl.U1, cl.V1, cl.U2, cl.V2 = u1.T, v1.T, u2.T, v2.T
+        extra = np.zeros((n, 0)) if extra is None else np.asarray(extra, dtype=float)[perm]
+        stacks: dict[int, np.ndarray] = {}
+        for k, cl in enumerate(clusters):
             if cl.mid < 0:
                 idx = perm[cl.lo : cl.hi]
-                cl.lu = self._factor(M[np.ix_(idx, idx)] - self.shift[idx][None, :])
+                cl.inv = self._inverse(M[np.ix_(idx, idx)] - self.shift[idx][None, :])
+                cols = []
+                child, up = k, parent[k]
+                while up >= 0:  # this leaf's rows of the sibling blocks above it, nearest first
+                    p = clusters[up]
+                    U, lo = (p.U1, p.lo) if child == p.left else (p.U2, p.mid)
+                    cols.append(U[cl.lo - lo : cl.hi - lo])
+                    child, up = up, parent[up]
+                cols.append(extra[cl.lo : cl.hi])
+                stacks[k] = cl.inv @ np.hstack(cols)
                 continue
-            a, b = perm[cl.lo : cl.mid], perm[cl.mid : cl.hi]
-            u1, v1 = _aca(M, a, b, self.shift, tol)
-            u2, v2 = _aca(M, b, a, self.shift, tol)
-            cl.U1, cl.V1, cl.U2, cl.V2 = u1.T, v1.T, u2.T, v2.T
-            cl.Y1 = self._apply(cl.left, cl.U1.copy(), cl.lo)
-            cl.Y2 = self._apply(cl.right, cl.U2.copy(), cl.mid)
+            sa, sb = stacks.pop(cl.left), stacks.pop(cl.right)
             k1, k2 = cl.U1.shape[1], cl.U2.shape[1]
+            cl.Y1, cl.Y2 = sa[:, :k1].copy(), sb[:, :k2].copy()
             K = np.eye(k1 + k2)
             K[:k1, k1:] = cl.V1.T @ cl.Y2
             K[k1:, :k1] = cl.V2.T @ cl.Y1
-            cl.lu = self._factor(K)
+            cl.inv = self._inverse(K)
+            stacks[k] = self._correct(cl, np.vstack([sa[:, k1:], sb[:, k2:]]))
+        self.solved_extra = np.empty_like(extra)
+        self.solved_extra[perm] = stacks[len(clusters) - 1]
 
-    def _factor(self, A: np.ndarray) -> tuple:
+    def _inverse(self, A: np.ndarray) -> np.ndarray:
+        """A⁻¹ by LAPACK (an explicit inverse: applying it is a matrix product, much faster than triangular
+        solves at these sizes)."""
         lu, piv, info = self._getrf(A, overwrite_a=True)
+        if info == 0:
+            inv, info = self._getri(lu, piv, overwrite_lu=True)
         if info != 0:
             raise np.linalg.LinAlgError("singular cluster block")
-        return lu, piv
+        return inv
 
-    def _apply(self, top: int, X: np.ndarray, lo: int) -> np.ndarray:
-        """A⁻¹ X in place for the cluster ``clusters[top]`` (X: its rows in cluster order, from position lo)."""
-        for cl in self.clusters[self.clusters[top].first : top + 1]:
-            if cl.mid < 0:
-                X[cl.lo - lo : cl.hi - lo] = self._getrs(*cl.lu, X[cl.lo - lo : cl.hi - lo])[0]
-                continue
-            x1 = X[cl.lo - lo : cl.mid - lo]
-            x2 = X[cl.mid - lo : cl.hi - lo]
-            k1 = cl.V1.shape[1]
-            w = self._getrs(*cl.lu, np.concatenate([cl.V1.T @ x2, cl.V2.T @ x1]))[0]
-            x1 -= cl.Y1 @ w[:k1]
-            x2 -= cl.Y2 @ w[k1:]
+    def _correct(self, cl: _Cluster, X: np.ndarray) -> np.ndarray:
+        """The Woodbury step of inner cluster ``cl`` on X = diag(A_left⁻¹, A_right⁻¹) R, in place."""
+        x1 = X[: cl.mid - cl.lo]
+        x2 = X[cl.mid - cl.lo :]
+        k1 = cl.V1.shape[1]
+        w = cl.inv @ np.vstack([cl.V1.T @ x2, cl.V2.T @ x1])
+        x1 -= cl.Y1 @ w[:k1]
+        x2 -= cl.Y2 @ w[k1:]
         return X
 
     def apply(self, R: np.ndarray) -> np.ndarray:
         """M'⁻¹ R (R: (n, m), panel order) approximately."""
-        X = self._apply(len(self.clusters) - 1, R[self.order].copy(), 0)
+        X = R[self.order]
+        for cl in self.clusters:
+            if cl.mid < 0:
+                X[cl.lo : cl.hi] = cl.inv @ X[cl.lo : cl.hi]
+            else:
+                self._correct(cl, X[cl.lo : cl.hi])
         out = np.empty_like(X)
         out[self.order] = X
         return out
@@ -248,11 +272,11 @@ class BorderedPreconditioner:
 
     def __init__(self, M: np.ndarray, n: int, points: np.ndarray, **options):
         lengths = M[-1, :n]
-        self.inner = HodlrInverse(M, points, lengths, **options)
+        self.inner = HodlrInverse(M, points, lengths, M[:n, n:], **options)
         self.n = n
         self.lengths = lengths
         self.C = M[n:, :n]
-        self.Z = self.inner.apply(M[:n, n:])  # M'⁻¹ B
+        self.Z = self.inner.solved_extra  # M'⁻¹ B
         self.S_inv = np.linalg.inv(-(self.C @ self.Z))
 
     def __call__(self, R: np.ndarray) -> np.ndarray:

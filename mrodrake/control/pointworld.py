@@ -16,6 +16,10 @@ u_b = u_a − L, η = (x − a)·n, θ = signed angle under which the panel is s
     ∇W  = (ln r_a − ln r_b) t + 2θ n,
     ∇²W = A (t tᵀ − n nᵀ) + B (t nᵀ + n tᵀ),  A = 2(u_a/r_a − u_b/r_b),  B = 2η(1/r_a − 1/r_b).
 
+Solve: from :data:`HIERARCHICAL_PANELS` panels on, float64 iterative refinement preconditioned by the HODLR
+inverse of :mod:`mrodrake.control.hodlr`; below (or if that does not converge), a float32 LU with refinement.
+Both refine against the float64 system to the same residual bound (:func:`_solve_refined`).
+
 Evaluation: H, J_H and the Hessians come from the compiled treecode of :mod:`mrodrake.control.treecode`
 (multipole expansions of far clusters, these closed forms near the point), within :data:`TREE_TOLERANCES` of
 the direct sum over all panels (kept as :meth:`PointWorldMap.evaluate_direct`).
