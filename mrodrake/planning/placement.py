@@ -29,7 +29,8 @@ a door can cut it off for a team).  Spots keep
 ``radius + control.margin`` to walls, obstacles and other regions (sampled boundary points are fixed disks), so
 that the point-world free space of a departure or an arrival contains them.  Every local motion
 (back-off, docking, room move) is checked for a straight-leg path inside its region
-(:func:`mrodrake.geometry.local_path`).  A geometry that cannot be realised raises
+(:func:`mrodrake.geometry.local_path`); a docking slot also keeps the goal tolerances of the executor from the
+entities parked beside it (they stop up to that far off their spots).  A geometry that cannot be realised raises
 :class:`PlacementError` naming the step and the region, before any simulation.
 """
 
@@ -47,7 +48,7 @@ from shapely.geometry import Point
 from shapely.ops import unary_union
 
 from mrodrake.errors import UserError
-from mrodrake.geometry import grasp_layout, local_path, polygon
+from mrodrake.geometry import DOCK_TOL, GOAL_TOL, grasp_layout, local_path, polygon
 from mrodrake.packing import can_place, place
 from mrodrake.planning.steps import StepSpec, expand_steps
 from mrodrake.ts import Grasp, Navigate, Release, TransitionSystem, Transport
@@ -350,12 +351,26 @@ class _Placer:
             self._fits[key] = can_place(R, fc, fr, future, seed=self.seed, margin=self.spacing, **kw)
         return self._fits[key]
 
-    def path_ok(self, w: _World, e: int, k: int, goal, ignore: set[int]) -> bool:
+    def drift(self, w: _World, m: int) -> float:
+        """How far entity m may stand from its planned spot when executed: a navigation or transport ends within
+        GOAL_TOL of it (a back-off or room move within DOCK_TOL), and a docked robot sits within DOCK_TOL of its
+        slot next to an object within GOAL_TOL of its own."""
+        return GOAL_TOL + DOCK_TOL if m < self.N and w.grasp[m] >= 0 else GOAL_TOL
+
+    def path_ok(self, w: _World, e: int, k: int, goal, ignore: set[int], anchor: int | None = None) -> bool:
         """Straight-leg path inside region k for robot e from its position to ``goal`` around every other
-        entity's disk (team members as themselves, objects at their own radius)."""
+        entity's disk (team members as themselves, objects at their own radius).  With ``anchor`` (object j),
+        ``goal`` is a docking slot, which the sequencer neither moves nor checks against the planned spots: it
+        keeps the drift of both j (the slot moves with it) and each other entity (:meth:`drift`) beyond the
+        radii from everything but j and the robots docked to j (their slots move with it too)."""
         others = [m for m in range(self.N + self.M) if m != e and m not in ignore and w.where[m] == k]
         centers = w.pos[others].reshape(-1, 2)
         radii = self.radii[others] + self.radii[e]
+        if anchor is not None:
+            tied = {self.N + anchor, *w.team_of(anchor)}
+            slack = [0.0 if m in tied else self.drift(w, m) + GOAL_TOL for m in others]
+            if np.any(np.linalg.norm(centers - np.asarray(goal, dtype=float), axis=1) < radii + np.array(slack)):
+                return False
         try:
             local_path(w.pos[e], np.asarray(goal, dtype=float), centers, radii, self.centers[k],
                        float(self.R[k] - self.radii[e]))
@@ -568,18 +583,16 @@ class _Placer:
                 slots = layout_slots(ts, j, team, xo, rot)
                 if not self._slots_free(w, k, step, j, team, robots, slots, cover):
                     continue
-                trial = w.pos.copy()
+                trial, trial_grasp = w.pos.copy(), list(w.grasp)
                 for order in itertools.permutations(robots):  # docking order: whoever is boxed in goes first
                     ok = True
                     for i in order:
                         slot = slots[team.index(i)]
-                        if not self.path_ok(w, i, k, slot, set()):
+                        if not self.path_ok(w, i, k, slot, set(), anchor=j):
                             ok = False
                             break
-                        w.pos[i] = slot
+                        w.pos[i], w.grasp[i] = slot, j
                     if ok:
-                        for i in order:
-                            w.grasp[i] = j
                         w.rotation[j] = float(rot)
                         # a slot inside the covering disk of a team that leaves in this step: that robot, and
                         # whoever docks after it, docks once the team has left (grasps change no label)
@@ -589,7 +602,7 @@ class _Placer:
                             self.deferred.update((step, i) for i in order[late[0]:])
                         return ops + [PlacedOp(OpKind.GRASP, acts[i], i, k, tuple(map(float, w.pos[i])), float(rot),
                                                team) for i in order]
-                    w.pos[:] = trial
+                    w.pos[:], w.grasp[:] = trial, trial_grasp
             if round_ == 0:  # free robots in the way move inside the region
                 found = self.make_room(w, spec, step, k, [], [(xo, cover)], members)
                 if found is not None:
