@@ -103,9 +103,13 @@ def grasp_layout(object_radius: float, robot_radii: Sequence[float], gap: float)
 #: Clearance (m) a moving entity keeps from walls, workspace obstacles and other regions beyond its radius
 #: (the controllers' numerical margin, see :mod:`mrodrake.control.freespace`).
 CONTROL_MARGIN = 0.5
+#: Distance (m) to its goal at which the sequencer completes a docking, back-off or room move.
+DOCK_TOL = 0.03
+#: Distance (m) to its planned spot at which the sequencer completes a navigation or transport.
+GOAL_TOL = 0.05
 #: Slack (m) on a robots-object team's covering radius wherever its travel between regions is checked: its
-#: members dock within the sequencer's docking tolerance (3 cm) of their slots, so the disk that travels is up
-#: to that much larger than the planned covering radius; the rest covers rounding.
+#: members dock within :data:`DOCK_TOL` of their slots, so the disk that travels is up to that much larger
+#: than the planned covering radius; the rest covers rounding.
 TEAM_TRAVEL_SLACK = 0.05
 #: Erosion (m) of a free space beyond radius and margin: opens pinch points where enlarged obstacles touch.
 FREE_SPACE_SAFETY = 1e-3

@@ -65,17 +65,13 @@ from mrodrake.execution.schedule import (
     redraw_corridors,
     task_order,
 )
-from mrodrake.geometry import disk, polygon, workspace_free_space
+from mrodrake.geometry import DOCK_TOL, GOAL_TOL, disk, polygon, workspace_free_space
 from mrodrake.planning.placement import OpKind, PlacedOp, Placement, layout_slots
 from mrodrake.planning.steps import StepSpec
 from mrodrake.ts import Transport
 
 #: Speed (m/s) under which an arrived entity counts as at rest (then parked).
 REST_SPEED = 0.05
-#: Distance (m) to its goal at which a docking, back-off or room move is complete.
-DOCK_TOL = 0.03
-#: Distance (m) to its planned spot at which a navigation or transport is complete.
-GOAL_TOL = 0.05
 #: Halvings of a local motion's path clearance allowed where no path keeps it (:func:`local_path`): entities
 #: dock and stop within DOCK_TOL and GOAL_TOL of their planned points, so a gap that placement checked at the full
 #: clearance can be a few cm narrower (a release on a generated office task: a 0.10 m gap beside a member robot).

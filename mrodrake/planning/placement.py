@@ -15,22 +15,24 @@ entity ends:
 * *room* moves: when a grasp layout or an arrival finds no room, the parked free robots of that region are
   placed again together with it (clear of the robots that dock next), and move inside the region first.
 
-Every spot is a P_s placement (:func:`mrodrake.packing.place`) in the region with the layout spacing to the
-other entities and the rim; ungrasped objects with a later transport occupy their future team's covering
-disk (reserved; the members that start beside it stand on their slots inside it); an arrival also leaves
-room for the largest set of entities the plan brings into that region while it stays (foresight, dropped in
-the order of the smallest first when it does not fit).  A robot that stays docked to an object moves only
-with it, so an arriving team keeps such robots (its own members' slots included) out of the covering disk of
-every team that stands or forms around another object while they stay docked; when no spot does, an earlier
-arrival learns to keep the object in the way off it.  A robot arriving, or backing off after a release, where
-a team stands keeps out of that team's covering disk if the team leaves before the robot acts again (in
-execution order), and parked spots are first sought where the region's later trips keep a way out (a spot beside
-a door can cut it off for a team).  Spots keep
-``radius + control.margin`` to walls, obstacles and other regions (sampled boundary points are fixed disks), so
-that the point-world free space of a departure or an arrival contains them.  Every local motion
+Every spot is a P_s placement (:func:`mrodrake.packing.place`) in the region with the layout spacing to the other
+entities and the rim; ungrasped objects with a later transport occupy their future team's covering disk
+(reserved; the members that start beside it stand on their slots inside it; an object whose disk a team that
+forms later cannot keep at the start stands where that team can form and set off); an arrival also leaves room
+for the largest set of entities the plan brings into that region while it stays (foresight, dropped in the order
+of the smallest first when it does not fit).  A robot that stays docked to an object moves only with it, so an
+arriving team keeps such robots (its own members' slots included) out of the covering disk of every team that
+stands or forms around another object while they stay docked; when no spot does, an earlier arrival learns to
+keep the object in the way off it.  A robot arriving, or backing off after a release, where a team stands keeps
+out of that team's covering disk if the team leaves before the robot acts again (in execution order), and parked
+spots are first sought where the region's later trips keep a way out (a spot beside a door can cut it off for a
+team).  Spots keep ``radius + control.margin`` to walls, obstacles and other regions (sampled boundary points are
+fixed disks), so that the point-world free space of a departure or an arrival contains them.  Every local motion
 (back-off, docking, room move) is checked for a straight-leg path inside its region
-(:func:`mrodrake.geometry.local_path`).  A geometry that cannot be realised raises
-:class:`PlacementError` naming the step and the region, before any simulation.
+(:func:`mrodrake.geometry.local_path`); a docking slot also keeps the goal tolerances of the executor from the
+entities parked beside it (they stop up to that far off their spots).  A geometry that cannot be realised (also a
+navigation or transport whose start is not in its free space) raises :class:`PlacementError` naming the step and
+the region, before any simulation.
 """
 
 from __future__ import annotations
@@ -47,7 +49,7 @@ from shapely.geometry import Point
 from shapely.ops import unary_union
 
 from mrodrake.errors import UserError
-from mrodrake.geometry import grasp_layout, local_path, polygon
+from mrodrake.geometry import DOCK_TOL, GOAL_TOL, grasp_layout, local_path, polygon
 from mrodrake.packing import can_place, place
 from mrodrake.planning.steps import StepSpec, expand_steps
 from mrodrake.ts import Grasp, Navigate, Release, TransitionSystem, Transport
@@ -158,7 +160,7 @@ class _Placer:
         self.R = np.array([g.radius for g in sc.regions], dtype=float)
         self.radii = np.array(ts.robot_radius + ts.object_radius, dtype=float)
         self._samples: dict[int, np.ndarray] = {}
-        self._next: dict[tuple[int, int], tuple[int, ...] | None] = {}
+        self._next: dict[tuple[int, int], Transport | None] = {}
         self._fits: dict[tuple, bool] = {}  # answers of the ``future`` check of spot (a pure function)
         self.variant = 0
         self.rng = np.random.default_rng(self.seed)
@@ -210,18 +212,18 @@ class _Placer:
             self._samples[k] = out
         return out
 
-    def next_team(self, j: int, step: int) -> tuple[int, ...] | None:
-        """Team of the first transport of object j at or after executed step ``step`` (0-based)."""
+    def next_carry(self, j: int, step: int) -> Transport | None:
+        """The first transport of object j at or after executed step ``step`` (0-based), or None."""
         key = (j, step)
         if key not in self._next:
-            team = None
-            for spec in self.steps[step:]:
-                hit = [a for a in spec.actions if isinstance(a, Transport) and a.obj == j]
-                if hit:
-                    team = tuple(hit[0].team)
-                    break
-            self._next[key] = team
+            self._next[key] = next((a for spec in self.steps[step:] for a in spec.actions
+                                    if isinstance(a, Transport) and a.obj == j), None)
         return self._next[key]
+
+    def next_team(self, j: int, step: int) -> tuple[int, ...] | None:
+        """Team of the first transport of object j at or after executed step ``step`` (0-based)."""
+        a = self.next_carry(j, step)
+        return None if a is None else tuple(a.team)
 
     def first_grasp(self, j: int, step: int) -> float:
         """Executed step (0-based) at or after ``step`` at which object j's next team starts forming."""
@@ -350,12 +352,26 @@ class _Placer:
             self._fits[key] = can_place(R, fc, fr, future, seed=self.seed, margin=self.spacing, **kw)
         return self._fits[key]
 
-    def path_ok(self, w: _World, e: int, k: int, goal, ignore: set[int]) -> bool:
+    def drift(self, w: _World, m: int) -> float:
+        """How far entity m may stand from its planned spot when executed: a navigation or transport ends within
+        GOAL_TOL of it (a back-off or room move within DOCK_TOL), and a docked robot sits within DOCK_TOL of its
+        slot next to an object within GOAL_TOL of its own."""
+        return GOAL_TOL + DOCK_TOL if m < self.N and w.grasp[m] >= 0 else GOAL_TOL
+
+    def path_ok(self, w: _World, e: int, k: int, goal, ignore: set[int], anchor: int | None = None) -> bool:
         """Straight-leg path inside region k for robot e from its position to ``goal`` around every other
-        entity's disk (team members as themselves, objects at their own radius)."""
+        entity's disk (team members as themselves, objects at their own radius).  With ``anchor`` (object j),
+        ``goal`` is a docking slot, which the sequencer neither moves nor checks against the planned spots: it
+        keeps the drift of both j (the slot moves with it) and each other entity (:meth:`drift`) beyond the
+        radii from everything but j and the robots docked to j (their slots move with it too)."""
         others = [m for m in range(self.N + self.M) if m != e and m not in ignore and w.where[m] == k]
         centers = w.pos[others].reshape(-1, 2)
         radii = self.radii[others] + self.radii[e]
+        if anchor is not None:
+            tied = {self.N + anchor, *w.team_of(anchor)}
+            slack = [0.0 if m in tied else self.drift(w, m) + GOAL_TOL for m in others]
+            if np.any(np.linalg.norm(centers - np.asarray(goal, dtype=float), axis=1) < radii + np.array(slack)):
+                return False
         try:
             local_path(w.pos[e], np.asarray(goal, dtype=float), centers, radii, self.centers[k],
                        float(self.R[k] - self.radii[e]))
@@ -568,18 +584,16 @@ class _Placer:
                 slots = layout_slots(ts, j, team, xo, rot)
                 if not self._slots_free(w, k, step, j, team, robots, slots, cover):
                     continue
-                trial = w.pos.copy()
+                trial, trial_grasp = w.pos.copy(), list(w.grasp)
                 for order in itertools.permutations(robots):  # docking order: whoever is boxed in goes first
                     ok = True
                     for i in order:
                         slot = slots[team.index(i)]
-                        if not self.path_ok(w, i, k, slot, set()):
+                        if not self.path_ok(w, i, k, slot, set(), anchor=j):
                             ok = False
                             break
-                        w.pos[i] = slot
+                        w.pos[i], w.grasp[i] = slot, j
                     if ok:
-                        for i in order:
-                            w.grasp[i] = j
                         w.rotation[j] = float(rot)
                         # a slot inside the covering disk of a team that leaves in this step: that robot, and
                         # whoever docks after it, docks once the team has left (grasps change no label)
@@ -589,7 +603,7 @@ class _Placer:
                             self.deferred.update((step, i) for i in order[late[0]:])
                         return ops + [PlacedOp(OpKind.GRASP, acts[i], i, k, tuple(map(float, w.pos[i])), float(rot),
                                                team) for i in order]
-                    w.pos[:] = trial
+                    w.pos[:], w.grasp[:] = trial, trial_grasp
             if round_ == 0:  # free robots in the way move inside the region
                 found = self.make_room(w, spec, step, k, [], [(xo, cover)], members)
                 if found is not None:
@@ -1066,11 +1080,15 @@ class _Placer:
         return pos
 
     def formable(self, k: int, j: int, xo) -> bool:
-        """Whether the next team of object j can form around it at ``xo`` in region k: some rotation of its
-        layout (the angles a grasp tries) puts every slot inside the region with half the spacing to the rim."""
-        team = self.next_team(j, 0)
-        if not team:
+        """Whether the next team of object j can form around it at ``xo`` in region k and set off from there:
+        its transport's start lies in its free space (:func:`starts_clear`), and some rotation of its layout
+        (the angles a grasp tries) puts every slot inside the region with half the spacing to the rim."""
+        carry = self.next_carry(j, 0)
+        if carry is None:
             return True
+        if not starts_clear(self.ts, carry, xo):
+            return False
+        team = tuple(carry.team)
         reach = np.array([self.R[k] - float(self.radii[i]) - 0.5 * self.spacing for i in team])
         for rot in np.linspace(0.0, 2.0 * math.pi, _ANGLES, endpoint=False):
             slots = layout_slots(self.ts, j, team, xo, rot)
@@ -1081,9 +1099,10 @@ class _Placer:
     def _formable_layout(self, k: int, ents: list[int], radii: list[float], dropped: list[int],
                          sol: np.ndarray) -> np.ndarray:
         """The initial layout ``sol`` of region k, or, when an object whose team disk was dropped (its team
-        forms after others) stands where that team cannot form, one that first puts every object with its
-        kept disk, then each dropped object where its team can form clear of those disks, then the rest
-        (None when that fails too; ``sol`` is returned then, the grasp reports the failure)."""
+        forms after others) stands where that team cannot form or set off (:meth:`formable`), one that first
+        puts every object with its kept disk, then each dropped object where its team can, clear of those
+        disks, then the rest (when that fails too, ``sol`` is returned: the grasp, or the start check of
+        :func:`unreachable_arrival`, reports the failure)."""
         N = self.N
         if all(self.formable(k, ents[n] - N, sol[n]) for n in dropped):
             return sol
@@ -1162,11 +1181,28 @@ def _passes(space, disks, start, goal, mover_radius: float) -> bool:
                if not q.is_empty)
 
 
+def trip_space(ts: TransitionSystem, a: Navigate | Transport):
+    """(radius, static travel space) of a navigation (the robot's radius) or a transport (its team's travel
+    radius): the component of the travel space between its regions (paper Sec. III-A: walls, obstacles and the
+    other regions grown by radius + ``control.margin``), None when there is none."""
+    R = float(ts.robot_radius[a.robot]) if isinstance(a, Navigate) else ts.travel_radius(a.obj, tuple(a.team))
+    return R, ts.region_graph.travel_space(R, a.src, a.dst)
+
+
+def starts_clear(ts: TransitionSystem, a: Navigate | Transport, start) -> bool:
+    """Whether navigation or transport ``a`` can set off from ``start``: its static travel space
+    (:func:`trip_space`) contains it, as the controllers' free space must contain the start (a team's disk
+    there keeps its travel radius + ``control.margin`` from walls, obstacles and other regions)."""
+    space = trip_space(ts, a)[1]
+    return space is not None and bool(space.contains(Point(*np.asarray(start, dtype=float))))
+
+
 def unreachable_arrival(ts: TransitionSystem, placement: Placement) -> PlacementError | None:
-    """The first navigation or transport of the placed run whose goal the free space of the moving entity
-    does not connect with its start (the sequencer's test, paper Sec. III-A: walls, obstacles and the other
-    regions grown by radius + ``control.margin``, the other entities' bodies by the
-    radius), as a PlacementError naming the step; None when every arrival is reachable."""
+    """The first navigation or transport of the placed run whose start is not in the free space of the moving
+    entity (:func:`starts_clear`) or whose goal that free space does not connect with its start (the
+    sequencer's test, paper Sec. III-A: walls, obstacles and the other regions grown by radius +
+    ``control.margin``, the other entities' bodies by the radius), as a PlacementError naming the step; None
+    when every arrival is reachable."""
     N = ts.N
     radii = np.array(list(ts.robot_radius) + list(ts.object_radius), dtype=float)
     X = np.array(placement.initial, dtype=float)
@@ -1175,15 +1211,18 @@ def unreachable_arrival(ts: TransitionSystem, placement: Placement) -> Placement
         for op in sp_.ops:
             if op.kind in (OpKind.NAVIGATE, OpKind.TRANSPORT):
                 a = op.action
-                if isinstance(a, Navigate):
-                    movers, R = {a.robot}, float(radii[a.robot])
-                else:
-                    movers, R = {N + a.obj, *a.team}, ts.travel_radius(a.obj, a.team)
-                space = ts.region_graph.travel_space(R, a.src, a.dst)
+                movers = {a.robot} if isinstance(a, Navigate) else {N + a.obj, *a.team}
+                R, space = trip_space(ts, a)
                 start, goal = X[op.entity], np.asarray(op.goal, dtype=float)
                 disks = [(X[e], radii[e] + R) for e in range(len(X)) if e not in movers]
+                who = ts.format_action(a, "names")
+                if space is not None and not space.contains(Point(*start)):
+                    return PlacementError(
+                        f"step {sp_.step.index} (plan step {sp_.step.plan_step}): region "
+                        f"'{ts.region_names[a.src]}': the start ({start[0]:.3f}, {start[1]:.3f}) of {who} is "
+                        f"not in its free space (radius {R:.2f} m + {ts.margin:g} m margin to walls, obstacles "
+                        f"and other regions)", sp_.step, a.src)
                 if space is None or not _passes(space, disks, start, goal, R):
-                    who = ts.format_action(a, "names")
                     return PlacementError(
                         f"step {sp_.step.index} (plan step {sp_.step.plan_step}): region "
                         f"'{ts.region_names[a.dst]}': the goal ({goal[0]:.3f}, {goal[1]:.3f}) of {who} is "

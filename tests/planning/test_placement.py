@@ -431,3 +431,102 @@ def test_a_robot_of_a_team_that_forms_later_starts_inside_its_region():
     assert plan.stats["placement"]["rejected"] == []
     ts = TransitionSystem(sc)
     check_configuration(ts, ts.initial, np.asarray(plan.placement.initial, dtype=float))
+
+
+def _two_rooms() -> TransitionSystem:
+    """6 m x 4 m, two rooms joined by a 1.4 m door; p2 (radius 0.85 m) lies 0.1 m from the west and north
+    walls.  r2 starts in p2 beside o2, whose team r1+r3 (covering radius 0.70 m) forms there later and
+    carries it to p1: the team's disk and r2 cannot both be reserved in p2 at the start."""
+    return TransitionSystem(scenario_from_dict({
+        "name": "two_rooms",
+        "workspace": {"boundary": [[0, 0], [2.9, 0], [2.9, 1.3], [3.1, 1.3], [3.1, 0], [6, 0], [6, 4], [3.1, 4],
+                                   [3.1, 2.7], [2.9, 2.7], [2.9, 4], [0, 4]], "obstacles": []},
+        "regions": [{"name": "p1", "center": [1.0, 1.0], "radius": 0.85},
+                    {"name": "p2", "center": [1.0, 3.05], "radius": 0.85},
+                    {"name": "p3", "center": [5.0, 1.0], "radius": 0.85},
+                    {"name": "p4", "center": [5.0, 3.05], "radius": 0.75}],
+        "robots": [{"name": "r1", "mass": 1.0, "radius": 0.15, "power": 2, "initial_region": "p1"},
+                   {"name": "r2", "mass": 1.0, "radius": 0.15, "power": 2, "initial_region": "p2"},
+                   {"name": "r3", "mass": 1.0, "radius": 0.25, "power": 3, "initial_region": "p3"}],
+        "objects": [{"name": "o2", "mass": 0.25, "radius": 0.1, "required_power": 5, "initial_region": "p2"}],
+        "control": {"margin": 0.1},
+        "task": {"formula": "F o2_p1"},
+    }))
+
+
+def _two_rooms_run(ts: TransitionSystem) -> list[StepSpec]:
+    """r2 leaves p2 for p4, r3 and r1 come into p2, dock to o2 and carry it to p1."""
+    p1, p2, p3, p4 = range(4)
+    return _steps(ts, [ts.initial,
+                       ts.make_state([p1, p4, p3], [p2], [-1] * 3),
+                       ts.make_state([p1, p4, p2], [p2], [-1] * 3),
+                       ts.make_state([p2, p4, p2], [p2], [-1] * 3),
+                       ts.make_state([p2, p4, p2], [p2], [0, -1, 0]),
+                       ts.make_state([p1, p4, p1], [p1], [0, -1, 0])])
+
+
+def _transport_starts_outside(ts: TransitionSystem, pl) -> list[tuple[int, tuple[float, float]]]:
+    """(step, start) of every transport whose object, where the placed ops leave it, is not in the static
+    travel space of its team (walls, obstacles and other regions grown by travel radius + margin)."""
+    from shapely.geometry import Point
+
+    pos = np.array(pl.initial, dtype=float)
+    out = []
+    for sp in pl.steps:
+        for op in sp.ops:
+            if op.kind is OpKind.TRANSPORT:
+                a = op.action
+                space = ts.region_graph.travel_space(ts.travel_radius(a.obj, tuple(a.team)), a.src, a.dst)
+                if space is None or not space.contains(Point(*pos[op.entity])):
+                    out.append((sp.step.index, tuple(pos[op.entity])))
+            if op.team:
+                pos[list(op.team)] = np.asarray(op.goal) + (pos[list(op.team)] - pos[op.entity])
+            pos[op.entity] = op.goal
+    return out
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_an_object_whose_team_disk_is_not_reserved_starts_where_its_team_can_set_off(seed):
+    """The initial layout does not reserve o2's team disk (r2 stands beside it), but o2 still starts where
+    that team's disk keeps its travel radius + margin from the walls: the transport starts in its free space."""
+    ts = _two_rooms()
+    pl = place_run(ts, _two_rooms_run(ts), seed=seed)
+    assert _transport_starts_outside(ts, pl) == []
+    check_configuration(ts, ts.initial, np.asarray(pl.initial))
+
+
+def test_a_transport_that_would_start_against_a_wall_is_rejected_naming_its_step():
+    """Given initial positions with o2 0.73 m from p2's west wall, its team's disk (travel radius 0.75 m)
+    cannot set off from there: placement rejects the run before any simulation, naming the transport's step."""
+    ts = _two_rooms()
+    init = np.array([[1.0, 1.0], [1.25, 3.4], [5.0, 1.0], [0.73, 2.828]])
+    with pytest.raises(PlacementError) as e:
+        place_run(ts, _two_rooms_run(ts), initial=init)
+    assert str(e.value).startswith("step 5 (plan step 5): region 'p2': the start (0.730, 2.828) of transport o2")
+    assert "not in its free space" in str(e.value) and e.value.step.index == 5
+
+
+def test_a_docking_slot_keeps_the_goal_tolerance_of_a_parked_robot():
+    """The sequencer docks a robot to its slot (moved with the object) next to robots that stopped up to
+    GOAL_TOL (docked: GOAL_TOL + DOCK_TOL) off their planned spots: a slot 5 mm beyond the radii of a parked
+    robot is no docking goal, though any other local motion may end there."""
+    from mrodrake.geometry import DOCK_TOL, GOAL_TOL
+    from mrodrake.planning.placement import _Placer, _World
+
+    ts = _two_rooms()
+    steps = _two_rooms_run(ts)
+    placer = _Placer(ts, steps, seed=0)
+    p2 = 1
+    xo = np.array([1.0, 3.05])
+    slot = layout_slots(ts, 0, (0, 2), xo, 0.0)[1]  # r3's slot
+    away = (slot - xo) / np.linalg.norm(slot - xo)
+    side = np.array([-away[1], away[0]])
+    for gap, ok in ((0.005, False), (2 * GOAL_TOL + 1e-3, True)):
+        r1 = slot + side * (0.15 + 0.25 + gap)
+        w = _World(ts, steps[2].dst, np.vstack([r1, [5.0, 3.05], xo + (0.0, 0.55), xo]))
+        assert placer.path_ok(w, 2, p2, slot, set())
+        assert placer.path_ok(w, 2, p2, slot, set(), anchor=0) is ok
+    w.grasp[0] = 0  # r1 docked to o2 itself: its slot moves with o2, no allowance
+    w.pos[0] = layout_slots(ts, 0, (0, 2), xo, 0.0)[0]
+    assert placer.path_ok(w, 2, p2, slot, set(), anchor=0)
+    assert placer.drift(w, 0) == GOAL_TOL + DOCK_TOL and placer.drift(w, 1) == GOAL_TOL
