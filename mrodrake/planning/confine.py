@@ -16,11 +16,11 @@ from mrodrake.planning.product import prune_nba, useful_states
 from mrodrake.ts import TransitionSystem, reachable
 
 
-def never_true(ts: TransitionSystem, nba: NBA) -> int | None:
+def never_true(ts: TransitionSystem, nba: NBA, pruned: NBA | None = None) -> int | None:
     """Bit mask of the entity propositions false throughout every accepted executed word (module docstring);
     None when the pruned NBA accepts nothing or the initial label has such a proposition (the task is
-    unsatisfiable for a reason other checks name)."""
-    pruned = prune_nba(nba, ts, transit=True)
+    unsatisfiable for a reason other checks name); ``pruned``: ``prune_nba(nba, ts, transit=True)`` if at hand."""
+    pruned = prune_nba(nba, ts, transit=True) if pruned is None else pruned
     useful = useful_states(pruned)
     if not useful:
         return None
@@ -37,12 +37,12 @@ def never_true(ts: TransitionSystem, nba: NBA) -> int | None:
     return never
 
 
-def task_regions(ts: TransitionSystem, nba: NBA) -> list[set[int]] | None:
+def task_regions(ts: TransitionSystem, nba: NBA, pruned: NBA | None = None) -> list[set[int]] | None:
     """Per entity (robots, then objects) the regions it can be in on an accepted run: robots travel only
     through regions the task lets them into (from where they start, for their radius); objects lie only in
     regions the task lets them into (where a team can take them is :func:`carry_connections`).  None when
-    the task keeps no entity out of a region it could otherwise be in."""
-    never = never_true(ts, nba)
+    the task keeps no entity out of a region (``pruned`` as in :func:`never_true`)."""
+    never = never_true(ts, nba, pruned)
     if not never:
         return None
     K = ts.K

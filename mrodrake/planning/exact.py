@@ -108,11 +108,11 @@ class Pinned:
                 f"{k} on every accepted run)")
 
 
-def pinned_objects(ts: TransitionSystem, nba: NBA, skip=()) -> dict[int, Pinned]:
+def pinned_objects(ts: TransitionSystem, nba: NBA, skip=(), pruned: NBA | None = None) -> dict[int, Pinned]:
     """Objects (not in ``skip``) that no team of the robots the task lets into their initial region can grasp
     there with enough power (:func:`~mrodrake.planning.confine.task_regions`), when the task keeps out some
-    robot that could get there."""
-    regions = task_regions(ts, nba)
+    robot that could get there (``pruned``: ``prune_nba(nba, ts, transit=True)`` if at hand)."""
+    regions = task_regions(ts, nba, pruned)
     if regions is None:
         return {}
     out = {}
@@ -138,9 +138,10 @@ def check_power(ts: TransitionSystem, nba: NBA) -> None:
     without fixing them it has one.
     """
     stuck = immovable_objects(ts)
-    if not useful_states(prune_nba(nba, ts, transit=True)):
+    pruned = prune_nba(nba, ts, transit=True)
+    if not useful_states(pruned):
         return  # unsatisfiable for another reason; the planner reports it
-    pinned = pinned_objects(ts, nba, skip=stuck)
+    pinned = pinned_objects(ts, nba, skip=stuck, pruned=pruned)
     if not stuck and not pinned:
         return
     N = ts.N
