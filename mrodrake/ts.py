@@ -307,24 +307,27 @@ class TransitionSystem:
             self._robot_regions = [set(self.reach(self.robot_radius[i], self.initial[i])) for i in range(self.N)]
         return self._robot_regions
 
-    def carry_connections(self, j: int) -> np.ndarray | None:
+    def carry_connections(self, j: int, where: Sequence[set[int]] | None = None) -> np.ndarray | None:
         """``C[k, k']``: can object j ever be carried from region k to k' (None: no team is strong enough)?  A
         team that carries it stands in k and then in k', so its members are robots that can reach both, and
         it fits in both; with r the smallest covering radius of a strong-enough team of such robots
         (:meth:`smallest_team_radius`), the regions must hold a disk of radius r and be connected for r + the
-        docking slack (a larger radius only removes connections)."""
-        if j in self._carry:
+        docking slack (a larger radius only removes connections).  ``where``: the regions each robot can be
+        in, when narrower than :meth:`robot_regions` (not cached)."""
+        if where is None and j in self._carry:
             return self._carry[j]
         C = None
         if self.smallest_team_radius(j) is not None:
-            where = self.robot_regions()
+            regions = self.robot_regions() if where is None else where
             C = np.zeros((self.K, self.K), dtype=bool)
             for k in range(self.K):
                 for k2 in range(self.K):
-                    r = self.smallest_team_radius(j, [i for i in range(self.N) if k in where[i] and k2 in where[i]])
+                    crew = [i for i in range(self.N) if k in regions[i] and k2 in regions[i]]
+                    r = self.smallest_team_radius(j, crew)
                     if r is not None and self.region_fits(k, [r]) and self.region_fits(k2, [r]):
                         C[k, k2] = self.connected(r + TEAM_TRAVEL_SLACK, k, k2)
-        self._carry[j] = C
+        if where is None:
+            self._carry[j] = C
         return C
 
     def team_size_note(self, r: float) -> str:

@@ -21,9 +21,10 @@ enough" before any search.
 
 from __future__ import annotations
 
+import itertools
 import time
 import weakref
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -31,6 +32,7 @@ import scipy.sparse as sp
 
 from mrodrake.errors import NoPlanFound, UserError
 from mrodrake.logic.nba import NBA
+from mrodrake.planning.confine import task_regions
 from mrodrake.planning.interval import interval_accepts
 from mrodrake.planning.product import Product, optimal_lasso, prune_nba, restrict_nba, useful_states
 from mrodrake.planning.universal import is_deterministic, solve_families
@@ -38,16 +40,19 @@ from mrodrake.ts import ExplicitTS, TransitionSystem
 
 
 # ---------------------------------------------------------------------------------------------- power
-def max_team_power(ts: TransitionSystem, j: int) -> tuple[float, tuple[int, ...]]:
-    """Largest power Σζ_i of a team that can grasp object j in some region (its covering disk fits),
-    with the team.  Enumerates teams for N ≤ 16; beyond that the bound Σ_i ζ_i over all robots."""
-    N = ts.N
-    if N > 16:
-        return float(sum(ts.power)), tuple(range(N))
+def max_team_power(ts: TransitionSystem, j: int, among: Sequence[int] | None = None,
+                   region: int | None = None) -> tuple[float, tuple[int, ...]]:
+    """Largest power Σζ_i of a team that can grasp object j in some region (its covering disk fits), with the
+    team; ``among``: the robots it may draw on (default all), ``region``: only that region.  Enumerates teams
+    of up to 16 candidate robots; beyond that the bound Σ_i ζ_i over them."""
+    robots = tuple(range(ts.N)) if among is None else tuple(sorted(among))
+    if len(robots) > 16:
+        return float(sum(ts.power[i] for i in robots)), robots
+    regions = range(ts.K) if region is None else (region,)
     teams = []
-    for mask in range(1, 1 << N):
-        team = tuple(i for i in range(N) if mask >> i & 1)
-        teams.append((sum(ts.power[i] for i in team), team))
+    for n in range(1, len(robots) + 1):
+        for team in itertools.combinations(robots, n):
+            teams.append((sum(ts.power[i] for i in team), team))
     teams.sort(key=lambda x: (-x[0], len(x[1]), x[1]))
     fitted: dict[tuple, bool] = {}
     for power, team in teams:
@@ -55,7 +60,7 @@ def max_team_power(ts: TransitionSystem, j: int) -> tuple[float, tuple[int, ...]
         ok = fitted.get(key)
         if ok is None:
             r = ts.covering_radius(j, team)
-            ok = any(ts.region_fits(k, [r]) for k in range(ts.K))
+            ok = any(ts.region_fits(k, [r]) for k in regions)
             fitted[key] = ok
         if ok:
             return float(power), team
@@ -79,17 +84,66 @@ def immovable_objects(ts: TransitionSystem) -> dict[int, tuple[float, tuple[int,
     return dict(out)
 
 
+@dataclass(frozen=True)
+class Pinned:
+    """Object ``obj`` cannot leave its initial region: the robots the task lets into it (``crew``;
+    ``kept_out``: those that could get there but the task keeps out) muster at most ``power`` with a team
+    (``team``) that fits there."""
+
+    obj: int
+    region: int
+    power: float
+    team: tuple[int, ...]
+    crew: tuple[int, ...]
+    kept_out: tuple[int, ...]
+
+    def reason(self, ts: TransitionSystem) -> str:
+        """Object, region, power needed, the robots let in and those kept out."""
+        rn, k = ts.robot_names, ts.region_names[self.region]
+        crew = ", ".join(rn[i] for i in self.crew) or "none"
+        best = f"team {'+'.join(rn[i] for i in self.team)}" if self.team else "no team of them fits"
+        return (f"object {ts.object_names[self.obj]} must leave region {k} but needs power "
+                f"{ts.required_power[self.obj]:g} and the robots the task lets into {k} ({crew}) reach at most "
+                f"power {self.power:g} ({best}; the task keeps {', '.join(rn[i] for i in self.kept_out)} out of "
+                f"{k} on every accepted run)")
+
+
+def pinned_objects(ts: TransitionSystem, nba: NBA, skip=(), pruned: NBA | None = None) -> dict[int, Pinned]:
+    """Objects (not in ``skip``) that no team of the robots the task lets into their initial region can grasp
+    there with enough power (:func:`~mrodrake.planning.confine.task_regions`), when the task keeps out some
+    robot that could get there (``pruned``: ``prune_nba(nba, ts, transit=True)`` if at hand)."""
+    regions = task_regions(ts, nba, pruned)
+    if regions is None:
+        return {}
+    out = {}
+    where = ts.robot_regions()
+    for j in range(ts.M):
+        k = ts.initial[ts.N + j]
+        crew = tuple(i for i in range(ts.N) if k in regions[i])
+        kept_out = tuple(i for i in range(ts.N) if k in where[i] and k not in regions[i])
+        if j in skip or not kept_out:
+            continue
+        power, team = max_team_power(ts, j, among=crew, region=k)
+        if power < ts.required_power[j]:
+            out[j] = Pinned(j, k, power, team, crew, kept_out)
+    return out
+
+
 def check_power(ts: TransitionSystem, nba: NBA) -> None:
     """Raise a one-line UserError when the task needs an object to move that no team can move.
 
-    Static check: with every immovable object fixed in its initial region, the pruned NBA has no
-    accepting cycle reachable from its initial state, while without fixing them it has one.
+    Static check: with every object fixed in its initial region that no team can move
+    (:func:`immovable_objects`) or that no team of the robots the task lets into that region can
+    (:func:`pinned_objects`), the pruned NBA has no accepting cycle reachable from its initial state, while
+    without fixing them it has one.
     """
     stuck = immovable_objects(ts)
-    if not stuck:
-        return
-    if not useful_states(prune_nba(nba, ts, transit=True)):
+    pruned = prune_nba(nba, ts, transit=True)
+    if not useful_states(pruned):
         return  # unsatisfiable for another reason; the planner reports it
+    pinned = pinned_objects(ts, nba, skip=stuck, pruned=pruned)
+    if not stuck and not pinned:
+        return
     N = ts.N
     init = ts.initial
 
@@ -97,13 +151,16 @@ def check_power(ts: TransitionSystem, nba: NBA) -> None:
         fixed = {N + j: init[N + j] for j in js}
         return not useful_states(prune_nba(nba, ts, fixed, transit=True))
 
-    if not empty_with(stuck):
+    held = sorted(set(stuck) | set(pinned))
+    if not empty_with(held):
         return
-    culprits = [j for j in sorted(stuck) if empty_with([j])] or sorted(stuck)
+    culprits = [j for j in held if empty_with([j])] or held
     j = culprits[0]
+    others = f" (also: {', '.join(ts.object_names[c] for c in culprits[1:])})" if len(culprits) > 1 else ""
+    if j in pinned:
+        raise UserError(f"task is unsatisfiable: {pinned[j].reason(ts)}{others}")
     power, team = stuck[j]
     who = "+".join(ts.robot_names[i] for i in team) if team else "none"
-    others = f" (also: {', '.join(ts.object_names[c] for c in culprits[1:])})" if len(culprits) > 1 else ""
     why = ""
     best = ts.smallest_team(j)
     if best is not None:  # strong teams exist, but none fits in a region with the object

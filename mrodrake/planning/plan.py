@@ -61,6 +61,7 @@ from mrodrake.logic.formula import Formula, atoms
 from mrodrake.logic.nba import NBA
 from mrodrake.logic.parse import parse
 from mrodrake.logic.translate import translate
+from mrodrake.planning.bans import Bans, LocalBan
 from mrodrake.planning.decide import EXACT_BOUND, decide
 from mrodrake.planning.exact import check_power, solve_exact, solve_exact_graph
 from mrodrake.planning.graph import GraphTS, load_graph_ts
@@ -397,7 +398,8 @@ def _check_budget(planner: str, iterations: int | None, time_limit: float | None
         raise UserError(f"--time-limit: must be > 0, got {time_limit}")
 
 
-#: Candidate plans the placement may reject before planning gives up (each rejection bans one TS transition).
+#: Candidate plans the placement may reject before planning gives up (each rejection bans its TS transition and,
+#: for STyLuS*'s first search, every transition with the same local situation: :mod:`mrodrake.planning.bans`).
 MAX_REFINEMENTS = 16
 #: Without a plan after ``iterations`` and without a verdict, STyLuS* samples up to this many times as long.
 EXTEND_FACTOR = 10
@@ -417,8 +419,9 @@ def plan_scenario(scenario, planner: str = "stylus", seed: int | None = None, it
     so placement rejects fewer of them), and the whole TS once that search finds nothing. A plan is returned only
     when its executed run (the prefix and ``suffix_cycles`` suffix cycles) places
     (:func:`~mrodrake.planning.placement.place_plan` with ``layout_seed``, default the planner's seed or 0: what
-    ``Mission(seed=...)`` uses); a plan placement rejects bans the step that failed and the planner searches again
-    (``place=False``: no placement).
+    ``Mission(seed=...)`` uses); a plan placement rejects bans the step that failed, and for STyLuS*'s first
+    search every step with the same local situation in the failed region (:mod:`mrodrake.planning.bans`), and the
+    planner searches again (``place=False``: no placement).
     When STyLuS* finds no plan within ``iterations``, :func:`~mrodrake.planning.decide.decide` tries to prove
     the task unsatisfiable (relaxations; the exact search when the product is small, whose plan is used), and
     otherwise STyLuS* samples up to :data:`EXTEND_FACTOR` times as long.  Unsatisfiable tasks raise a
@@ -450,6 +453,7 @@ def _plan_scenario(scenario, planner, seed, iterations, time_limit, progress, re
     lay_seed = int(layout_seed) if layout_seed is not None else (used_seed or 0)
     report = (lambda msg: progress({"message": msg})) if progress else None
     banned: list[tuple[State, State]] = []
+    local_bans: list[LocalBan] = []
     rejected: list[str] = []
     decision = None
     while True:
@@ -458,7 +462,8 @@ def _plan_scenario(scenario, planner, seed, iterations, time_limit, progress, re
             res = solve_exact(ts, nba, words.relevant, progress=report, banned=tuple(banned))
         else:
             try:
-                res = Stylus(strict or ts, nba, words.relevant, seed=used_seed, replan=replan, banned=banned).run(
+                bans = Bans(ts, banned, local_bans)
+                res = Stylus(strict or ts, nba, words.relevant, seed=used_seed, replan=replan, banned=bans).run(
                     its, time_limit=time_limit, progress=progress)
             except NoPlanFound as first:
                 strict = None
@@ -487,6 +492,8 @@ def _plan_scenario(scenario, planner, seed, iterations, time_limit, progress, re
                 raise NoPlanFound(f"no plan found whose executed run places: placement rejected {len(rejected)} "
                                   f"plans (last: {e}); satisfiability unknown") from None
             banned.append(edge)
+            if e.step is not None and e.region >= 0:
+                local_bans.append(LocalBan.of(ts, tuple(e.step.src), tuple(e.step.dst), e.region))
             if report:
                 report(f"placement rejected a plan ({e}); planning again without that step")
             continue

@@ -12,7 +12,9 @@ them or constrains the others:
   and only between regions where that team, of robots that can reach both, fits (objects:
   :meth:`~mrodrake.ts.TransitionSystem.carry_connections`; a larger radius only removes connections);
   objects no team can move (:func:`~mrodrake.planning.exact.immovable_objects`) and robots without a passage
-  never move;
+  never move; an entity never enters a region the task keeps it out of on every accepted run, and a team
+  that carries an object is of robots the task lets into both regions
+  (:func:`~mrodrake.planning.confine.task_regions`);
 * packing (P_s), step capacity, Λ and grasping are dropped: entities of E move independently, one visible
   crossing per letter, any number of invisible ones (ε, closed over); only a guard cube that needs two
   entities in one region where they never fit together (:meth:`Relaxations._crowded`) is never usable;
@@ -38,6 +40,7 @@ import scipy.sparse as sp
 from scipy.sparse.csgraph import breadth_first_order, connected_components
 
 from mrodrake.logic.nba import NBA
+from mrodrake.planning.confine import carry_connections, task_regions
 from mrodrake.planning.exact import immovable_objects
 from mrodrake.ts import TransitionSystem, reachable
 
@@ -79,14 +82,20 @@ def _closure(eps: sp.csr_matrix) -> sp.csr_matrix:
         C = C2
 
 
-def entity_connections(ts: TransitionSystem, immovable) -> list[np.ndarray]:
-    """``C[e][k, k']``: can entity e ever travel from region k to k' (see the module docstring)."""
+def entity_connections(ts: TransitionSystem, immovable, regions=None) -> list[np.ndarray]:
+    """``C[e][k, k']``: can entity e ever travel from region k to k' (see the module docstring); ``regions``:
+    where the task lets each entity be (:func:`~mrodrake.planning.confine.task_regions`)."""
     out = []
     K = ts.K
     for i in range(ts.N):
-        out.append(ts.connections(ts.robot_radius[i]).copy())
+        C = ts.connections(ts.robot_radius[i]).copy()
+        if regions is not None:
+            out_of = [k for k in range(K) if k not in regions[i]]
+            C[out_of, :] = False
+            C[:, out_of] = False
+        out.append(C)
     for j in range(ts.M):
-        C = None if j in immovable else ts.carry_connections(j)
+        C = None if j in immovable else carry_connections(ts, j, regions)
         out.append(np.zeros((K, K), dtype=bool) if C is None else C.copy())
     for C in out:
         np.fill_diagonal(C, False)
@@ -160,7 +169,8 @@ class Relaxations:
         ts = self.ts
         K, n_ent = ts.K, ts.N + ts.M
         self.immovable = immovable_objects(ts)
-        self.conn = entity_connections(ts, self.immovable)
+        self.regions = task_regions(ts, self.nba)
+        self.conn = entity_connections(ts, self.immovable, self.regions)
         self.reach = []
         for e in range(n_ent):
             self.reach.append(sum(1 << k for k in reachable(self.conn[e], ts.initial[e])))
@@ -365,8 +375,9 @@ class Relaxations:
         who = ", ".join(self._who(e) for e in es)
         if kind == "labels":
             return (f"task is unsatisfiable: no accepting cycle of the NBA ({Q} states) has guards that executed "
-                    "words of the TS can satisfy (relaxation: each entity confined to the regions it can reach, "
-                    "between regions while it travels; entities a guard needs in one region fit there together)")
+                    "words of the TS can satisfy (relaxation: each entity confined to the regions it can reach"
+                    f"{' and the task lets it into' if self.regions is not None else ''}, between regions while "
+                    "it travels; entities a guard needs in one region fit there together)")
         if kind == "entity":
             return (f"task is unsatisfiable: {who} cannot produce a word the NBA accepts even with every other "
                     f"entity unconstrained (relaxation: its own travels only, packing and Λ dropped; {size} "

@@ -60,6 +60,7 @@ import numpy as np
 
 from mrodrake.errors import NoPlanFound, UserError
 from mrodrake.logic.nba import NBA
+from mrodrake.planning.bans import Bans
 from mrodrake.planning.exact import blocked_note
 from mrodrake.planning.graph_stylus import GraphStrategy
 from mrodrake.planning.legs import LassoImprover
@@ -777,11 +778,9 @@ class Stylus:
                  p_rand: float | None = None, p_new: float | None = None, max_active_suffix: int = 4,
                  suffix_budget: int = 1000, replan: bool = True, banned=None):
         self.ts = ts
-        #: TS transitions the planner must not use (state -> states; both directions of each pair).
-        self.banned: dict[State, set[State]] = {}
-        for a, b in banned or ():
-            self.banned.setdefault(tuple(a), set()).add(tuple(b))
-            self.banned.setdefault(tuple(b), set()).add(tuple(a))
+        #: TS transitions the planner must not use (state -> states; both directions of each pair): a
+        #: :class:`~mrodrake.planning.bans.Bans` or state pairs.
+        self.banned = banned if isinstance(banned, Bans) else Bans(ts, banned or ())
         self.strategy = strategy_for(ts, relevant)
         self.nba = self.strategy.prune(nba)
         self.words = self.strategy.words(self.nba)

@@ -169,3 +169,15 @@ def test_power_check_is_silent_when_the_object_need_not_move():
 def test_case_study_2_exact_plan_verified(case2):
     plan = plan_scenario(case2.scenario, planner="exact")
     plan.verify(case2.ts, case2.nba, case2.formula)
+
+
+def test_real_valued_powers_are_summed_against_the_required_power():
+    robots = [{"name": "r1", "mass": 1.0, "radius": 0.75, "power": 1.5, "initial_region": "p1"},
+              {"name": "r2", "mass": 1.2, "radius": 0.75, "power": 2.5, "initial_region": "p2"}]
+    objects = [{"name": "o1", "mass": 0.25, "radius": 0.2, "required_power": 4.0, "initial_region": "p1"}]
+    plan = plan_scenario(_variant("F o1_p3", robots=robots, objects=objects), planner="exact")
+    assert any(isinstance(a, Transport) and a.team == (0, 1) for acts in plan.actions for a in acts)
+    objects[0]["required_power"] = 4.25
+    with pytest.raises(UserError) as e:
+        plan_scenario(_variant("F o1_p3", robots=robots, objects=objects), planner="exact")
+    assert "needs power 4.25 and the maximum team power is 4 (team r1+r2)" in str(e.value)
