@@ -55,6 +55,10 @@ def _no_passage(margin: float, team: bool = False) -> str:
 
 State = tuple
 
+#: Relative slack of the power comparison Λ (Σ_{i ∈ team} power_i ≥ required power, paper Sec. II): powers
+#: are real, and a sum of a few decimal powers is off by ~1e-16 relative in floating point; required powers
+#: closer than this to a team's power count as met.
+POWER_SLACK = 1e-9
 #: Entities (robots + objects) up to which region occupancy is handled as int64 bit masks.
 _MASK_BITS = 40
 #: Largest code table the vectorised checks allocate densely (else they sort the codes).
@@ -140,7 +144,9 @@ class TransitionSystem:
         self.robot_radius = [r.radius for r in scenario.robots]
         self.power = [r.power for r in scenario.robots]
         self.object_radius = [o.radius for o in scenario.objects]
-        self.required_power = [o.required_power for o in scenario.objects]
+        # the threshold of Λ: sums of decimal powers round in binary (0.7 + 0.1 < 0.8), so a team counts as
+        # strong enough from (1 − POWER_SLACK) × the required power on
+        self.required_power = [o.required_power * (1.0 - POWER_SLACK) for o in scenario.objects]
         self.region_radius = [g.radius for g in scenario.regions]
         self.margin = float(scenario.control.margin)
         self.centers = np.array([g.center for g in scenario.regions], dtype=float)

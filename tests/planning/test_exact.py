@@ -181,3 +181,17 @@ def test_real_valued_powers_are_summed_against_the_required_power():
     with pytest.raises(UserError) as e:
         plan_scenario(_variant("F o1_p3", robots=robots, objects=objects), planner="exact")
     assert "needs power 4.25 and the maximum team power is 4 (team r1+r2)" in str(e.value)
+
+
+def test_a_team_whose_decimal_powers_add_up_to_the_required_power_is_strong_enough():
+    """0.7 + 0.1 < 0.8 in floating point: Λ allows for the rounding of the sum (ts.POWER_SLACK), so the team
+    carries the object; a team 1e-6 short still does not."""
+    robots = [{"name": "r1", "mass": 1.0, "radius": 0.75, "power": 0.7, "initial_region": "p1"},
+              {"name": "r2", "mass": 1.2, "radius": 0.75, "power": 0.1, "initial_region": "p2"}]
+    objects = [{"name": "o1", "mass": 0.25, "radius": 0.2, "required_power": 0.8, "initial_region": "p1"}]
+    assert 0.7 + 0.1 < 0.8
+    plan = plan_scenario(_variant("F o1_p3", robots=robots, objects=objects), planner="exact")
+    assert any(isinstance(a, Transport) and a.team == (0, 1) for acts in plan.actions for a in acts)
+    objects[0]["required_power"] = 0.800001
+    with pytest.raises(UserError, match="needs power 0.800001 and the maximum team power is 0.8"):
+        plan_scenario(_variant("F o1_p3", robots=robots, objects=objects), planner="exact")
