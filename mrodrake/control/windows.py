@@ -20,6 +20,13 @@ window a larger one still; a goal in such a pocket that no window around the ent
 around the goal (:func:`goal_window_free_space`).
 F ∩ B ⊂ F, so each window keeps the guarantees of the
 law on its own map (no collision, φ bounded); the motion moves on to the next window near each waypoint.
+
+A map can also resolve the entity's position and still hold it: H is constant on each hole, so a goal next
+to a hole and the points along the rest of that hole all map near χ_d (warehouse, a goal beside a shelf row
+that a parked robot joins to the next one: the law brought the entity to the row's far corner, 6.4 m from
+its goal, with φ = 1e-8, and it stayed there), and two holes a few centimetres apart leave a channel in which
+the entity chatters on the spot.  :func:`progress` detects such a stall from the motion alone; the motion then
+moves to a window smaller than the map that held it, whose rim cuts the holes beyond it into its outer boundary.
 """
 
 from __future__ import annotations
@@ -52,6 +59,14 @@ STALL_SPEED = 0.25
 #: Warehouse mission n3 s3 (randomized), navigate r1 p2->p5: at every tick its point was resolved or it moved at
 #: 0.25 m/s or more, until det J_H = 0 (2e-14 at the fault) ended the mission; with the floor it finishes.
 RESOLUTION_FLOOR = 1e-8
+#: Fraction of its distance to its goal below which an entity on the point-world law counts as stalled when that
+#: is all it moved in one period 1/(2 k1) (:func:`progress`).  Away from barriers φ = k1‖χ − χ_d‖² and the law
+#: drives χ̇ → −2 k1 (χ − χ_d) (its velocity loop settles in m/(k_v + 3/2 α̂) < 1 s), so in one period the
+#: distance to χ_d falls by a factor e and, where J_H varies little, the entity covers e − 1 = 1.7 times the
+#: distance it has left; where H squeezes a room, the entity runs at the speed bound.  In case study I no period
+#: of a motion covered less than 10 % (5.5 m of 53 m at 0.1 m/s), a crawl to a goal beside a hole 13 %; the
+#: corner stall above covered 0.8 %, then less, and a chatter on the spot nothing.
+STALL_FRACTION = 0.02
 #: Radius (m) of a window around the entity.
 WINDOW_RADIUS = 12.0
 #: Distance (m) a window's waypoint keeps inside the window's rim.
@@ -99,6 +114,23 @@ def point_resolution(pw_map, x) -> float:
         minx, miny, maxx, maxy = pw_map.free_space.bounds
         extent = math.hypot(maxx - minx, maxy - miny)
     return (det / s_max if s_max > 0.0 else 0.0) * extent
+
+
+def progress(anchor: tuple[float, float, float], t: float, x, goal, period: float, tol: float
+             ) -> tuple[tuple[float, float, float], bool]:
+    """Stall detection on the point-world law: ``anchor`` (t₀, x₀, y₀) is where the entity was when the current
+    period started.  Once ``period`` has passed, the entity has stalled if it is more than ``tol`` from
+    ``goal`` and moved less than :data:`STALL_FRACTION` of its distance to it since t₀; otherwise a new period
+    starts at (t, x).  Returns the anchor to keep and whether the entity has stalled."""
+    x0, x1 = np.asarray(x, dtype=float).reshape(2).tolist()
+    t0, a0, a1 = anchor
+    if t - t0 < period:
+        return anchor, False
+    g0, g1 = np.asarray(goal, dtype=float).reshape(2).tolist()
+    left = math.hypot(g0 - x0, g1 - x1)
+    if left > tol and math.hypot(x0 - a0, x1 - a1) < STALL_FRACTION * left:
+        return anchor, True
+    return (float(t), x0, x1), False
 
 
 def grid_path(poly: Polygon, start, goal, step: float = GRID_STEP,

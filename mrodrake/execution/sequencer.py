@@ -43,11 +43,16 @@ from mrodrake.control.tasks import MAP_OPTIONS, build_map, build_task, departure
 from mrodrake.control.windows import (
     RESOLUTION,
     RESOLUTION_FLOOR,
+    STALL_FRACTION,
     STALL_SPEED,
+    WINDOW_GROWTH,
+    WINDOW_MARGIN,
+    WINDOW_RADIUS,
     WINDOW_SWITCH,
     goal_window_free_space,
     grid_path,
     point_resolution,
+    progress,
     resolution,
     window_free_space,
 )
@@ -124,7 +129,8 @@ class Motion:
     regions, covering radius, start and goal; ``legs`` are the straight legs of the local law (None while on
     the point-world law), ``leg`` the current one; ``exiting``: the legs are exit legs in the source region
     (out of another entity's margin, or ``departed``: to a start that maps inside the circle barrier) before
-    the point-world law starts."""
+    the point-world law starts; ``window_radius``: the radius of its windows (smaller after each stall),
+    ``anchor``: (t, x, y) where the current period of stall detection started on the point-world law."""
 
     kind: OpKind
     entity: int
@@ -153,6 +159,8 @@ class Motion:
     waypoint: tuple | None = None
     corridor: Corridor | None = None
     spans: tuple = ()
+    window_radius: float = WINDOW_RADIUS
+    anchor: tuple = ()
 
 
 @dataclass(frozen=True)
@@ -289,6 +297,8 @@ class Sequencer:
         self.region_radii = np.array([g.radius for g in scenario.regions], dtype=float)
         self.couplings = [(int(j), tuple(int(i) for i in team)) for j, team in couplings]
         self.rest_speed, self.dock_tol, self.goal_tol = float(rest_speed), float(dock_tol), float(goal_tol)
+        # period of stall detection: the time constant 1/(2 k1) of the point-world law (windows.STALL_FRACTION)
+        self.stall_period = 1.0 / (2.0 * float(scenario.control.k1))
         self.time_limit = time_limit
         self.approach = self._approach_widths()
         self._maps: OrderedDict = OrderedDict()
@@ -910,7 +920,8 @@ class Sequencer:
                 return windowed
             raise _Failure(f"{m.kind.value} of {name}: {str(exc).splitlines()[0]}") from None
         ed.tasks[m.controller] = TaskCommand(task, m.episode)
-        return replace(m, task=task, free=free, waypoint=None, spans=(*m.spans, (ed.t, free)))
+        return replace(m, task=task, free=free, waypoint=None, spans=(*m.spans, (ed.t, free)),
+                       anchor=(ed.t, float(x[0]), float(x[1])))
 
     def _window(self, ed: _Edit, x: np.ndarray, m: Motion, free, around_goal: bool = False,
                 halvings: int = 0) -> Motion | None:
@@ -923,7 +934,8 @@ class Sequencer:
             if around_goal:
                 window, pw = goal_window_free_space(free, x, m.goal)
             else:
-                window, pw = window_free_space(free, x, grid_path(free.polygon, x, m.goal, halvings=halvings))
+                window, pw = window_free_space(free, x, grid_path(free.polygon, x, m.goal, halvings=halvings),
+                                               radius=m.window_radius)
             task = build_task(self.scenario, window, max(1, len(m.team)),
                               label=f"{self.entities[m.entity]} {m.kind.value} {'goal ' * around_goal}window",
                               pw_map=pw)
@@ -931,25 +943,65 @@ class Sequencer:
             return None
         ed.tasks[m.controller] = TaskCommand(task, m.episode)
         return replace(m, task=task, free=window, waypoint=tuple(map(float, window.goal)),
-                       spans=(*m.spans, (ed.t, window)))
+                       spans=(*m.spans, (ed.t, window)), anchor=(ed.t, float(x[0]), float(x[1])))
 
     def _next_window(self, ed: _Edit, X: np.ndarray, m: Motion) -> Motion:
         """Near the waypoint of its window a motion moves on to the next window (never back to the map of the
         whole motion, which drove it into the unresolved part again: warehouse aisle 2, a navigation cycled
         between both for 1 750 s); on the map of the whole motion it moves to a window when it is slower than
         :data:`~mrodrake.control.windows.STALL_SPEED` where that map does not resolve its position, or at any
-        speed where the resolution falls below :data:`~mrodrake.control.windows.RESOLUTION_FLOOR`."""
+        speed where the resolution falls below :data:`~mrodrake.control.windows.RESOLUTION_FLOOR`.  On either
+        map, a motion that has stalled (:func:`~mrodrake.control.windows.progress`) moves to a smaller window
+        (:meth:`_unstall`).  A window whose waypoint is nearer than twice WINDOW_SWITCH (a small window, a
+        waypoint short of a pocket) is left halfway to it, not at the next tick."""
         if m.kind not in (OpKind.NAVIGATE, OpKind.TRANSPORT) or m.legs is not None or not m.world:
             return m
         x = X[m.entity, :2]
+        goal = m.goal if m.waypoint is None else m.waypoint
+        anchor, stalled = progress(m.anchor, ed.t, x, goal, self.stall_period, self.goal_tol)
+        if stalled and not self._arrived(X, m):
+            return self._unstall(ed, X, m)
+        if anchor is not m.anchor:
+            m = replace(m, anchor=anchor)
         if m.waypoint is None:
             res = point_resolution(m.world[1], x)
             if res >= RESOLUTION or (math.hypot(*X[m.entity, 2:]) >= STALL_SPEED and res >= RESOLUTION_FLOOR):
                 return m
             return self._window(ed, x.copy(), m, replace(m.world[0], start=x.copy())) or replace(m, world=())
-        if math.hypot(*(x - np.asarray(m.waypoint))) > WINDOW_SWITCH or np.allclose(m.waypoint, m.goal):
+        wp = np.asarray(m.waypoint)
+        switch = min(WINDOW_SWITCH, 0.5 * math.hypot(*(wp - np.asarray(m.free.start))))
+        if math.hypot(*(x - wp)) > switch or np.allclose(m.waypoint, m.goal):
             return m
         return self._window(ed, x.copy(), m, replace(m.world[0], start=x.copy())) or self._map_task(ed, X, m, 0.0)
+
+    def _unstall(self, ed: _Edit, X: np.ndarray, m: Motion) -> Motion:
+        """A stalled motion (:func:`~mrodrake.control.windows.progress`) goes on in a window around the entity
+        smaller than the map that held it: radius the motion's window radius, at most the farthest point of that
+        map's free space from the entity, over :data:`~mrodrake.control.windows.WINDOW_GROWTH`, smaller again
+        until the window's law leads on from where the entity is (its desired velocity would cover
+        :data:`~mrodrake.control.windows.STALL_FRACTION` of the distance to the waypoint within a period); later
+        windows of the motion keep that radius.  A window is a subset of F, so the law keeps its guarantees.
+        Fails when no window of at least twice :data:`~mrodrake.control.windows.WINDOW_MARGIN` does."""
+        x = X[m.entity, :2].copy()
+        free = replace(m.world[0], start=x)
+        radius = min(m.window_radius, _reach(m.free.polygon, x)) / WINDOW_GROWTH
+        goal = np.asarray(m.goal if m.waypoint is None else m.waypoint)
+        self._event(ed, "stall", ed.t, ed.active.step, action=self._op_text(ed.active.op),
+                    entities=self.entities[m.entity],
+                    detail=f"stalled at ({x[0]:.3f}, {x[1]:.3f}), {math.hypot(*(goal - x)):.2f} m from its goal: "
+                           f"window of radius {radius:.2f} m or less")
+        while radius >= 2.0 * WINDOW_MARGIN:
+            windowed = self._window(ed, x, replace(m, window_radius=radius), free)
+            if windowed is None:
+                break
+            ev = windowed.task.evaluate(x, np.zeros(2), 1.0, 0.0)
+            ahead = math.hypot(*(np.asarray(windowed.waypoint) - x))
+            if not ev.fault and math.hypot(*ev.v_d) * self.stall_period >= STALL_FRACTION * ahead:
+                return windowed
+            radius = _reach(windowed.free.polygon, x) / WINDOW_GROWTH
+        raise _Failure(f"{m.kind.value} of {self.entities[m.entity]}: stalled at ({x[0]:.3f}, {x[1]:.3f}), "
+                       f"{math.hypot(*(np.asarray(m.goal) - x)):.2f} m from its goal, and no window around it leads "
+                       f"on")
 
     def _map(self, free):
         """The point-world map of ``free``: memoised over the last :data:`MAP_CACHE` free spaces (a departure
@@ -1221,6 +1273,11 @@ class Sequencer:
             ed.active = a if m is None else self._moving(a, m, t)
             return False
         return self._wait(ed, t, X, a)
+
+
+def _reach(poly, x: np.ndarray) -> float:
+    """Distance from x to the farthest vertex of the outer boundary of ``poly``."""
+    return float(np.max(np.linalg.norm(np.asarray(poly.exterior.coords) - x, axis=1)))
 
 
 def couplings_of(plan) -> list[tuple[int, tuple[int, ...]]]:

@@ -99,8 +99,9 @@ class MissionLog:
     ``trajectory``: t, entity, x, y, vx, vy (every robot and object, uniform sampling);
     ``signals``: t, controller, entity, ux, uy, m_hat, alpha_hat (active controllers; a transport has one
     row for the object (entity input u) and one per member (u_ℓ = cf_ℓ u));
-    ``events``: kind (primitive / label / order), t_start, t_end, step, plan_step, action, entities,
-    from_region, to_region, ok, propositions, nba_states, detail, time_limit (a primitive's motion bound, s);
+    ``events``: kind (primitive / label / order / stall: a stalled motion moved to a smaller window), t_start,
+    t_end, step, plan_step, action, entities, from_region, to_region, ok, propositions, nba_states, detail,
+    time_limit (a primitive's motion bound, s);
     ``grasps``: t_start, t_end, robot, object (docked intervals, for the replay).
     """
 

@@ -15,11 +15,13 @@ from mrodrake.control.freespace import Disk, entity_free_space
 from mrodrake.control.tasks import build_map, build_task, inside_circle
 from mrodrake.control.windows import (
     RESOLUTION,
+    STALL_FRACTION,
     WINDOW_GROWTH,
     WINDOW_RADIUS,
     goal_window_free_space,
     grid_path,
     point_resolution,
+    progress,
     resolution,
     window_free_space,
 )
@@ -215,3 +217,45 @@ def test_a_grid_path_passes_a_channel_between_two_grid_rows():
     assert np.allclose(path[0], start) and np.allclose(path[-1], goal)
     for a, b in zip(path[:-1], path[1:]):
         assert poly.buffer(1e-9).covers(shapely.LineString([a, b]))
+
+
+def _first_stall(xs, goal, period: float = 50.0, dt: float = 0.5, tol: float = 0.05) -> float | None:
+    """Time at which :func:`progress` first reports a stall along the trajectory ``xs`` sampled every dt."""
+    anchor = (0.0, *xs[0])
+    for k, x in enumerate(xs[1:], start=1):
+        anchor, stalled = progress(anchor, k * dt, x, goal, period, tol)
+        if stalled:
+            return k * dt
+    return None
+
+
+def test_an_exponential_approach_at_the_law_time_constant_never_stalls():
+    """The law's descent away from barriers, x − x_d ∝ exp(−2 k1 t), down to the goal tolerance."""
+    goal, t = np.array([10.0, 0.0]), np.arange(0.0, 400.0, 0.5)
+    xs = goal + np.outer(np.exp(-t / 50.0), [-6.0, 2.0])
+    assert _first_stall(xs, goal) is None
+
+
+def test_a_slow_run_far_from_the_goal_is_progress():
+    """5 m of 53 m in a period (a long motion through a squeezed room at 0.1 m/s)."""
+    goal, t = np.array([60.0, 0.0]), np.arange(0.0, 300.0, 0.5)
+    xs = np.column_stack([0.1 * t, np.zeros_like(t)])
+    assert _first_stall(xs, goal) is None
+
+
+def test_an_entity_that_creeps_to_a_standstill_short_of_its_goal_stalls_within_two_periods():
+    """Speed decaying like exp(−t/20 s) to a halt 6.4 m from the goal."""
+    goal, t = np.array([0.0, 0.0]), np.arange(0.0, 400.0, 0.5)
+    xs = np.column_stack([6.4 + 0.8 * np.exp(-t / 20.0), np.zeros_like(t)])
+    t_stall = _first_stall(xs, goal)
+    assert t_stall is not None and t_stall <= 100.0
+    k = int(t_stall / 0.5)
+    assert np.linalg.norm(xs[k] - xs[k - 100]) < STALL_FRACTION * np.linalg.norm(xs[k] - goal)
+
+
+def test_a_chatter_on_the_spot_stalls_and_a_rest_at_the_goal_does_not():
+    t = np.arange(0.0, 200.0, 0.5)
+    chatter = np.column_stack([3.0 + 1e-3 * np.sin(7.0 * t), np.zeros_like(t)])
+    assert _first_stall(chatter, np.zeros(2)) == 50.0
+    at_goal = np.column_stack([0.03 + 0.0 * t, np.zeros_like(t)])
+    assert _first_stall(at_goal, np.zeros(2)) is None

@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from mrodrake.control.windows import WINDOW_MARGIN, WINDOW_RADIUS
 from mrodrake.execution.sequencer import Phase, Sequencer, Status, couplings_of
 from mrodrake.planning.placement import OpKind, place_run
 from mrodrake.planning.plan import plan_scenario, task_words
@@ -218,3 +219,53 @@ def test_a_parked_entity_is_a_hole_at_its_planned_spot_within_its_parking_tolera
                 assert np.hypot(*(X[e, :2] - planned[e])) + r <= d.radius + 1e-12  # contains the actual disk
             else:
                 assert np.allclose(d.center, X[e, :2]) and d.radius == pytest.approx(r)
+
+
+def _point_world_navigation(seq: Sequencer, placement):
+    """The state, time and entity states at the first tick with a navigation on the point-world law."""
+    st = seq.initial_state()
+    X = np.zeros((len(seq.entities), 4))
+    X[:, :2] = np.asarray(placement.initial)
+    t = 0.0
+    for _ in range(2000):
+        st = seq.tick(st, t, X)
+        m = st.active.motion if st.active is not None else None
+        if m is not None and m.kind is OpKind.NAVIGATE and m.legs is None and m.world:
+            return st, t, X
+        X = _kinematic(seq, st, X)
+        t += 0.5
+    raise AssertionError("no navigation on the point-world law")
+
+
+def test_a_navigation_that_stops_short_of_its_goal_moves_to_a_smaller_window(tiny):
+    """An entity held still on the map of its whole motion stalls within two periods 1/(2 k1) and goes on in a
+    window around it smaller than the default, inside its free space; the stall is logged."""
+    sc, plan, words, placement = tiny
+    seq = Sequencer(sc, plan.ts, words, placement, couplings_of(plan))
+    st, t0, X = _point_world_navigation(seq, placement)
+    m = st.active.motion
+    t = t0
+    while t < t0 + 2.0 * seq.stall_period:
+        t += 0.5
+        st = seq.tick(st, t, X)
+        if st.active.motion.waypoint is not None:
+            break
+    assert st.status is Status.RUNNING
+    w = st.active.motion
+    assert w.waypoint is not None and w.window_radius < WINDOW_RADIUS and t - t0 >= seq.stall_period
+    assert w.free.polygon.difference(m.world[0].polygon).area < 1e-9
+    assert st.tasks[w.controller].task is w.task
+    assert [e["kind"] for e in st.events].count("stall") == 1
+
+
+def test_a_stalled_navigation_without_a_window_fails_with_the_reason(tiny):
+    sc, plan, words, placement = tiny
+    seq = Sequencer(sc, plan.ts, words, placement, couplings_of(plan))
+    st, t0, X = _point_world_navigation(seq, placement)
+    st = replace(st, active=replace(st.active, motion=replace(st.active.motion, window_radius=2.0 * WINDOW_MARGIN)))
+    t = t0
+    while st.status is Status.RUNNING and t < t0 + 3.0 * seq.stall_period:
+        t += 0.5
+        st = seq.tick(st, t, X)
+    assert st.status is Status.FAILED
+    assert "stalled at" in st.message and "no window around it leads on" in st.message
