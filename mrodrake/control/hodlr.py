@@ -33,8 +33,11 @@ LEAF = 128
 #: I's maps).  On those maps 1e-6 needed four steps (two more passes over M) and 1e-8 one step but larger ranks,
 #: each a few per cent slower in all.
 TOL = 1e-7
-#: Refinement steps before the solve gives up (the caller then solves densely).
-MAX_STEPS = 8
+#: Products with the system (refinement steps, then GMRES iterations) before the solve gives up (the caller
+#: then solves densely).
+MAX_STEPS = 12
+#: Least factor by which a refinement step must shrink the largest residual entry (else GMRES takes over).
+MIN_GAIN = 1e-2
 
 
 @njit(cache=True, nogil=True, fastmath={"reassoc", "contract"})
