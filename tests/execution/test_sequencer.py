@@ -105,16 +105,8 @@ def test_an_arrival_needs_the_whole_ball_inside_the_target_region(tiny):
     state_mismatch of gen_n4_m2_k4_s1, a team member 6 mm outside); at the goal itself it has."""
     sc, plan, words, placement = tiny
     seq = Sequencer(sc, plan.ts, words, placement, couplings_of(plan))
-    st = seq.initial_state()
-    X = np.zeros((len(seq.entities), 4))
-    X[:, :2] = np.asarray(placement.initial)
-    t = 0.0
-    for _ in range(2000):
-        st = seq.tick(st, t, X)
-        if st.active is not None and st.active.op.kind is OpKind.NAVIGATE and st.active.motion is not None:
-            break
-        X = _kinematic(seq, st, X)
-        t += 0.5
+    st, _, _ = _first_tick(seq, placement, lambda st: st.active is not None
+                           and st.active.op.kind is OpKind.NAVIGATE and st.active.motion is not None)
     m = st.active.motion
     c, R = np.asarray(sc.regions[m.dst].center, dtype=float), float(sc.regions[m.dst].radius)
     u = np.asarray(m.goal) - c
@@ -221,20 +213,27 @@ def test_a_parked_entity_is_a_hole_at_its_planned_spot_within_its_parking_tolera
                 assert np.allclose(d.center, X[e, :2]) and d.radius == pytest.approx(r)
 
 
-def _point_world_navigation(seq: Sequencer, placement):
-    """The state, time and entity states at the first tick with a navigation on the point-world law."""
+def _first_tick(seq: Sequencer, placement, wanted):
+    """The state, time and entity states (kinematic plants) at the first tick whose state satisfies ``wanted``."""
     st = seq.initial_state()
     X = np.zeros((len(seq.entities), 4))
     X[:, :2] = np.asarray(placement.initial)
     t = 0.0
     for _ in range(2000):
         st = seq.tick(st, t, X)
-        m = st.active.motion if st.active is not None else None
-        if m is not None and m.kind is OpKind.NAVIGATE and m.legs is None and m.world:
+        if wanted(st):
             return st, t, X
         X = _kinematic(seq, st, X)
         t += 0.5
-    raise AssertionError("no navigation on the point-world law")
+    raise AssertionError("no such tick")
+
+
+def _point_world_navigation(seq: Sequencer, placement):
+    """The state, time and entity states at the first tick with a navigation on the point-world law."""
+    def wanted(st):
+        m = st.active.motion if st.active is not None else None
+        return m is not None and m.kind is OpKind.NAVIGATE and m.legs is None and bool(m.world)
+    return _first_tick(seq, placement, wanted)
 
 
 def test_a_navigation_that_stops_short_of_its_goal_moves_to_a_smaller_window(tiny):
