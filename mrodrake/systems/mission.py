@@ -41,16 +41,6 @@ from mrodrake.systems.builders import (
 from mrodrake.systems.transition import TransitionResult
 from mrodrake.ts import TransitionSystem
 
-#: Derivative evaluations within one :data:`CHATTER_PERIOD` of simulated time after which the mission fails as
-#: chattering (the integrator rejects step after step).  The case-study missions take 176 163 (I) and 362 106
-#: (II) evaluations in all, at most 13 419 and 30 765 in any 10 s (bursts at narrow passages, over within 10 s);
-#: a navigation that flipped its velocity on the spot in a 7 cm channel between a shelf and a parked robot took
-#: 7 000-14 000 per 0.5 s, ~1 000 000 per 50 s, at 0.25x real time, for 17 minutes of wall time until
-#: det J_H = 0 ended it.
-CHATTER_EVALUATIONS = 200_000
-#: Simulated seconds over which :data:`CHATTER_EVALUATIONS` are counted.
-CHATTER_PERIOD = 50.0
-
 
 # ------------------------------------------------------------------------------------------ logger
 class MissionLogger(LeafSystem):
@@ -245,7 +235,6 @@ class Mission:
         self._stop = False
         self._fault = ""
         self._progress, self._last_done = None, -1
-        self._period_start, self._period_evaluations = 0.0, 0
         self.simulator.set_monitor(self._Monitor)
 
     # ------------------------------------------------------------------ running
@@ -303,22 +292,13 @@ class Mission:
     def _Monitor(self, root_context):
         """Simulator monitor, after every integration step: a stop request, or a fault of an active controller
         (its state left the free set or the map's domain, where the law only damps the entity's velocity),
-        ends ``AdvanceTo``; so do more than :data:`CHATTER_EVALUATIONS` derivative evaluations within
-        :data:`CHATTER_PERIOD` of simulated time; progress is reported per completed plan step.  The laws are
-        evaluated at the step's end only after an evaluation during the step found one undefined
+        ends ``AdvanceTo``; progress is reported per completed plan step.  The laws are evaluated at the step's
+        end only after an evaluation during the step found one undefined
         (:attr:`~mrodrake.systems.controllers.MissionControllers.fault_seen`): every step starts with an
         evaluation at the state the last one ended in, so a faulty state ends the mission one step later at the
         latest, and steps without a fault cost no extra evaluation."""
         if self._stop:
             return EventStatus.ReachedTermination(self.diagram, "stopped by the user")
-        t = root_context.get_time()
-        evaluations = self.simulator.get_integrator().get_num_derivative_evaluations()
-        if t >= self._period_start + CHATTER_PERIOD:
-            self._period_start, self._period_evaluations = t, evaluations
-        if evaluations - self._period_evaluations > CHATTER_EVALUATIONS:
-            self._fault = (f"integration stalled at t = {t:.2f} s: more than {CHATTER_EVALUATIONS} derivative "
-                           f"evaluations since t = {self._period_start:.2f} s (a motion chatters on the spot)")
-            return EventStatus.ReachedTermination(self.diagram, self._fault)
         if self.controllers.fault_seen:
             self.controllers.fault_seen = False
             fault = self.controllers.first_fault(self.controllers.GetMyContextFromRoot(root_context))

@@ -13,7 +13,6 @@ from mrodrake.control.adaptive import NavigationTask
 from mrodrake.planning.plan import plan_scenario
 from mrodrake.run import run_mission
 from mrodrake.scenario import load_scenario
-from mrodrake.systems import mission as mission_module
 from mrodrake.systems.plants import MissionPlants
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -120,20 +119,6 @@ def test_controller_fault_ends_the_primitive(tmp_path, monkeypatch):
     last = log.trajectory[log.trajectory["t"] == log.trajectory["t"].max()].set_index("entity")
     moving = "o1" if "controller fault of o1_" in log.message else log.message.split("navigate ")[1].split()[0]
     assert 20.0 < last.loc[moving, "x"] < 20.5  # stopped right after crossing, not integrated on
-
-
-def test_an_evaluation_budget_ends_a_chattering_primitive(tmp_path, monkeypatch):
-    """More than CHATTER_EVALUATIONS derivative evaluations within CHATTER_PERIOD of simulated time end the
-    primitive with a one-line reason and the logs written (here a budget of 30 in 50 s: the first steps of
-    the first motion take more, RK3 costing 3 per step)."""
-    monkeypatch.setattr(mission_module, "CHATTER_EVALUATIONS", 30)
-    log = run_mission(load_scenario(TINY), seed=0, out_dir=tmp_path)
-    assert not log.ok
-    m = re.search(r"failed at t = (\d+\.\d\d) s: integration stalled at t = \1 s: more than 30 derivative "
-                  r"evaluations since t = (\d+\.\d\d) s \(a motion chatters on the spot\)$", log.message)
-    assert m, log.message
-    assert float(m.group(1)) - float(m.group(2)) < 50.0
-    assert (tmp_path / "events.csv").is_file() and (tmp_path / "trajectory.csv").is_file()
 
 
 def test_write_failure_keeps_what_it_can(tmp_path, capsys):
