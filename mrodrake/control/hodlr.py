@@ -13,8 +13,8 @@ g = ln s².  It is negative on every pair of panels, so no cluster sees a log ke
 capacity 1 (where the single layer is singular).  The total-charge row makes the systems equivalent:
 M σ + c 1 = M' σ + c' 1 with c' = c + g Lᵀσ.
 
-The approximate inverse only preconditions iterative refinement against the exact float64 system
-(:func:`solve`), so the result is as accurate as a dense solve.
+The approximate inverse only preconditions iterative refinement (GMRES where that stalls) against the exact
+float64 system (``pointworld._solve_hierarchical``), so the result meets the dense solve's residual bound.
 """
 
 from __future__ import annotations
