@@ -20,11 +20,13 @@ float64 system (``pointworld._solve_hierarchical``), so the result meets the den
 from __future__ import annotations
 
 import math
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 
 import numpy as np
 from numba import njit
-from scipy.linalg import get_lapack_funcs
+
+from mrodrake.control.treecode import usable_cores
 
 #: Panels per leaf cluster at most.
 LEAF = 128
@@ -185,11 +187,13 @@ class HodlrInverse:
     ``solved_extra``: every cluster is visited once."""
 
     def __init__(self, M: np.ndarray, points: np.ndarray, lengths: np.ndarray, extra: np.ndarray | None = None,
-                 *, leaf: int | None = None, tol: float | None = None):
+                 *, leaf: int | None = None, tol: float | None = None, workers: int | None = None):
         leaf = LEAF if leaf is None else leaf
         tol = TOL if tol is None else tol
-        if leaf < 2 or not tol > 0.0:
-            raise ValueError(f"need leaf >= 2 and tol > 0, got {leaf}, {tol}")
+        self.tol = tol
+        workers = usable_cores() if workers is None else workers
+        if leaf < 2 or not tol > 0.0 or workers < 1:
+            raise ValueError(f"need leaf >= 2, tol > 0 and workers >= 1, got {leaf}, {tol}, {workers}")
         n = len(points)
         ext = points.max(axis=0) - points.min(axis=0)
         self.g = 2.0 * math.log(2.0 * max(float(np.hypot(ext[0], ext[1])), 1e-300))
@@ -199,51 +203,71 @@ class HodlrInverse:
         _bisect(np.asarray(points, dtype=float), np.arange(n), 0, leaf, clusters, order)
         self.order = perm = np.concatenate(order)
         self.clusters = clusters
-        self._getrf, self._getri = get_lapack_funcs(("getrf", "getri"), (M,))
-        parent = np.full(len(clusters), -1)
-        for k, cl in enumerate(clusters):
-            if cl.mid >= 0:
-                parent[cl.left] = parent[cl.right] = k
-                a, b = perm[cl.lo : cl.mid], perm[cl.mid : cl.hi]
-                u1, v1 = _aca(M, a, b, self.shift, tol)
-                u2, v2 = _aca(M, b, a, self.shift, tol)
-                cl.U1, cl.V1, cl.U2, cl.V2 = u1.T, v1.T, u2.T, v2.T
-        extra = np.zeros((n, 0)) if extra is None else np.asarray(extra, dtype=float)[perm]
-        stacks: dict[int, np.ndarray] = {}
-        for k, cl in enumerate(clusters):
-            if cl.mid < 0:
-                idx = perm[cl.lo : cl.hi]
-                cl.inv = self._inverse(M[np.ix_(idx, idx)] - self.shift[idx][None, :])
-                cols = []
-                child, up = k, parent[k]
-                while up >= 0:  # this leaf's rows of the sibling blocks above it, nearest first
-                    p = clusters[up]
-                    U, lo = (p.U1, p.lo) if child == p.left else (p.U2, p.mid)
-                    cols.append(U[cl.lo - lo : cl.hi - lo])
-                    child, up = up, parent[up]
-                cols.append(extra[cl.lo : cl.hi])
-                stacks[k] = cl.inv @ np.hstack(cols)
-                continue
-            sa, sb = stacks.pop(cl.left), stacks.pop(cl.right)
-            k1, k2 = cl.U1.shape[1], cl.U2.shape[1]
-            cl.Y1, cl.Y2 = sa[:, :k1].copy(), sb[:, :k2].copy()
-            K = np.eye(k1 + k2)
-            K[:k1, k1:] = cl.V1.T @ cl.Y2
-            K[k1:, :k1] = cl.V2.T @ cl.Y1
-            cl.inv = self._inverse(K)
-            stacks[k] = self._correct(cl, np.vstack([sa[:, k1:], sb[:, k2:]]))
-        self.solved_extra = np.empty_like(extra)
-        self.solved_extra[perm] = stacks[len(clusters) - 1]
+        self._parent = np.full(len(clusters), -1)
+        inner = [k for k, cl in enumerate(clusters) if cl.mid >= 0]
+        for k in inner:
+            self._parent[clusters[k].left] = self._parent[clusters[k].right] = k
+        self._extra = np.zeros((n, 0)) if extra is None else np.asarray(extra, dtype=float)[perm]
+        self._M = M
+        jobs = sorted(((k, side) for k in inner for side in (0, 1)),
+                      key=lambda job: -(clusters[job[0]].hi - clusters[job[0]].lo))  # largest blocks first
+        depth = max(0, math.ceil(math.log2(workers)))  # subtrees factorised on threads of their own
+        with ThreadPoolExecutor(max(1, 2**depth - 1)) as pool:
+            for (k, side), (ut, vt) in zip(jobs, pool.map(self._cross, jobs)):
+                if side == 0:
+                    clusters[k].U1, clusters[k].V1 = ut.T, vt.T
+                else:
+                    clusters[k].U2, clusters[k].V2 = ut.T, vt.T
+            top = self._factor(len(clusters) - 1, pool, depth)
+        self.solved_extra = np.empty_like(self._extra)
+        self.solved_extra[perm] = top
+        del self._M, self._extra
 
-    def _inverse(self, A: np.ndarray) -> np.ndarray:
-        """A⁻¹ by LAPACK (an explicit inverse: applying it is a matrix product, much faster than triangular
-        solves at these sizes)."""
-        lu, piv, info = self._getrf(A, overwrite_a=True)
-        if info == 0:
-            inv, info = self._getri(lu, piv, overwrite_lu=True)
-        if info != 0:
-            raise np.linalg.LinAlgError("singular cluster block")
-        return inv
+    def _cross(self, job: tuple[int, int]) -> tuple[np.ndarray, np.ndarray]:
+        """Cross approximation of one sibling block of inner cluster k: rows lo:mid × columns mid:hi (side 0)
+        or the transposed pair (side 1)."""
+        cl = self.clusters[job[0]]
+        a, b = self.order[cl.lo : cl.mid], self.order[cl.mid : cl.hi]
+        return _aca(self._M, a, b, self.shift, self.tol) if job[1] == 0 else _aca(self._M, b, a, self.shift, self.tol)
+
+    def _factor(self, k: int, pool: ThreadPoolExecutor, depth: int) -> np.ndarray:
+        """Factorise the cluster k's subtree; returns its block's inverse applied to its rows of the sibling
+        blocks above it and of ``extra`` (stacked; those of the sibling blocks solved here are dropped).  The
+        left subtree goes to ``pool`` while ``depth`` > 0: the same operations in the same order as in one
+        thread, so the result does not depend on the number of threads."""
+        cl = self.clusters[k]
+        if cl.mid < 0:
+            idx = self.order[cl.lo : cl.hi]
+            cl.inv = self._inverse(self._M[np.ix_(idx, idx)] - self.shift[idx][None, :])
+            cols = []
+            child, up = k, self._parent[k]
+            while up >= 0:  # this leaf's rows of the sibling blocks above it, nearest first
+                p = self.clusters[up]
+                U, lo = (p.U1, p.lo) if child == p.left else (p.U2, p.mid)
+                cols.append(U[cl.lo - lo : cl.hi - lo])
+                child, up = up, self._parent[up]
+            cols.append(self._extra[cl.lo : cl.hi])
+            return cl.inv @ np.hstack(cols)
+        if depth > 0:
+            left = pool.submit(self._factor, cl.left, pool, depth - 1)
+            sb = self._factor(cl.right, pool, depth - 1)
+            sa = left.result()
+        else:
+            sa = self._factor(cl.left, pool, 0)
+            sb = self._factor(cl.right, pool, 0)
+        k1, k2 = cl.U1.shape[1], cl.U2.shape[1]
+        cl.Y1, cl.Y2 = sa[:, :k1].copy(), sb[:, :k2].copy()
+        K = np.eye(k1 + k2)
+        K[:k1, k1:] = cl.V1.T @ cl.Y2
+        K[k1:, :k1] = cl.V2.T @ cl.Y1
+        cl.inv = self._inverse(K)
+        return self._correct(cl, np.vstack([sa[:, k1:], sb[:, k2:]]))
+
+    @staticmethod
+    def _inverse(A: np.ndarray) -> np.ndarray:
+        """A⁻¹ (an explicit inverse: applying it is a matrix product, much faster than triangular solves at these
+        sizes; numpy's LAPACK call releases the GIL, so subtrees factorise in parallel)."""
+        return np.linalg.inv(A)
 
     def _correct(self, cl: _Cluster, X: np.ndarray) -> np.ndarray:
         """The Woodbury step of inner cluster ``cl`` on X = diag(A_left⁻¹, A_right⁻¹) R, in place."""

@@ -77,6 +77,17 @@ def test_one_leaf_is_an_exact_inverse_of_the_bordered_system(office_system):
     assert np.abs(_residual(M, x, rhs)).max() <= 1e-9 * scale_m * np.abs(x).max()
 
 
+@pytest.mark.parametrize("workers", [2, 3, 4])
+def test_factorisation_on_threads_is_bitwise_that_of_one_thread(office_system, workers):
+    """Subtrees factorised and blocks approximated on several threads: every block sees the same operations in
+    the same order, so the preconditioner (and the map) does not depend on the number of threads."""
+    M, _, n, mid, _, _ = office_system
+    rhs = np.random.default_rng(2).standard_normal((len(M), 2))
+    one = BorderedPreconditioner(M, n, mid, leaf=64, workers=1)(rhs)
+    many = BorderedPreconditioner(M, n, mid, leaf=64, workers=workers)(rhs)
+    assert np.array_equal(one, many)
+
+
 def test_hierarchical_solve_matches_the_dense_map(office_system):
     """The office map (above :data:`HIERARCHICAL_PANELS`) is solved by the preconditioned refinement, to
     the dense solve's residual bound 1e-13 (max |M| max |x| + max |rhs|); both maps then agree on H, J_H at
