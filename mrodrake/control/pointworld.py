@@ -91,20 +91,27 @@ class _Ring:
 
     def normal(self, s: np.ndarray) -> np.ndarray:
         """Unit normal pointing into the free space (left of travel); bisector at vertices."""
-        tang = self.tangents
-        m = len(tang)
-        k = np.clip(np.searchsorted(self.cum, s, side="right") - 1, 0, m - 1)
-        t = tang[k].copy()
-        at_vertex = np.isclose(s, self.cum[k], rtol=0.0, atol=1e-12 * max(self.perimeter, 1.0))
-        if np.any(at_vertex):
-            kv = k[at_vertex]
-            bis = tang[kv] + tang[(kv - 1) % m]
-            nb = np.linalg.norm(bis, axis=1)
-            good = nb > 1e-9
-            t_v = t[at_vertex]
-            t_v[good] = bis[good] / nb[good, None]
-            t[at_vertex] = t_v
-        return np.column_stack([-t[:, 1], t[:, 0]])
+        return _ring_normals(np.asarray(s, dtype=float), self.cum, self.tangents, 1e-12 * max(self.perimeter, 1.0))
+
+
+@njit(cache=True, nogil=True)
+def _ring_normals(s, cum, tang, atol):
+    """Normals of :meth:`_Ring.normal`: the left normal of the edge holding arc position s[i] (the last edge
+    at or before it), of the bisector of the two edges at a vertex (within ``atol``) unless they turn back."""
+    m = tang.shape[0]
+    out = np.empty((s.shape[0], 2))
+    for i in range(s.shape[0]):
+        k = min(max(np.searchsorted(cum, s[i], side="right") - 1, 0), m - 1)
+        tx, ty = tang[k, 0], tang[k, 1]
+        if abs(s[i] - cum[k]) <= atol:
+            bx = tang[k, 0] + tang[(k - 1) % m, 0]
+            by = tang[k, 1] + tang[(k - 1) % m, 1]
+            nb = math.sqrt(bx * bx + by * by)
+            if nb > 1e-9:
+                tx, ty = bx / nb, by / nb
+        out[i, 0] = -ty
+        out[i, 1] = tx
+    return out
 
 
 def _prepare_ring(coords: np.ndarray, *, is_exterior: bool, curvature_fraction: float,
@@ -153,14 +160,27 @@ def _prepare_ring(coords: np.ndarray, *, is_exterior: bool, curvature_fraction: 
     )
 
 
+@njit(cache=True, nogil=True)
 def _cone_envelope(s: np.ndarray, h: np.ndarray, perimeter: float, grading: float) -> np.ndarray:
-    """min_j (h_j + grading · circular arc distance(s_i, s_j)) on a closed ring (exact, O(n))."""
-    n = len(s)
-    s3 = np.concatenate([s - perimeter, s, s + perimeter])
-    h3 = np.tile(h, 3)
-    fwd = grading * s3 + np.minimum.accumulate(h3 - grading * s3)
-    bwd = np.minimum.accumulate((h3 + grading * s3)[::-1])[::-1] - grading * s3
-    return np.minimum(fwd, bwd)[n : 2 * n]
+    """min_j (h_j + grading · circular arc distance(s_i, s_j)) on a closed ring (exact, O(n)): running minima
+    of h_j ∓ grading s_j over three copies of the ring, forwards and backwards."""
+    n = s.shape[0]
+    s3 = np.empty(3 * n)
+    for c in range(3):
+        for i in range(n):
+            s3[c * n + i] = s[i] + (c - 1) * perimeter if c != 1 else s[i]
+    fwd = np.empty(3 * n)
+    run = np.inf
+    for i in range(3 * n):
+        run = min(run, h[i % n] - grading * s3[i])
+        fwd[i] = grading * s3[i] + run
+    out = np.empty(n)
+    run = np.inf
+    for i in range(3 * n - 1, -1, -1):
+        run = min(run, h[i % n] + grading * s3[i])
+        if n <= i < 2 * n:
+            out[i - n] = min(fwd[i], run - grading * s3[i])
+    return out
 
 
 def _ball_min(rows, width, cols, geom):
@@ -189,17 +209,18 @@ def _ball_min(rows, width, cols, geom):
                                                                                     gy - 1)
     order = np.argsort(cell, kind="stable")
     start = np.searchsorted(cell[order], np.arange(gx * gy + 1))
-    return _ball_min_grid(cx, cy, half, rows, cols[order], x0, y0, h, gx, gy, start, x, y, nx, ny, s,
-                          np.asarray(ring_id, dtype=np.int64), perims, _LOCAL_ARC_RATIO**2)
+    out = np.empty(len(rows))
+    in_row_blocks(_ball_min_grid, len(rows), 1024, out, cx, cy, half, rows, cols[order], x0, y0, h, gx, gy, start,
+                  x, y, nx, ny, s, np.asarray(ring_id, dtype=np.int64), perims, _LOCAL_ARC_RATIO**2)
+    return out
 
 
 @njit(cache=True, nogil=True)
-def _ball_min_grid(cx, cy, half, rows, cols, x0, y0, h, gx, gy, start, x, y, nx, ny, s, ring_id, perims,
-                   arc_ratio2):
-    """The scan of :func:`_ball_min`: ``cols`` sorted by grid cell, cell c holding cols[start[c]:start[c + 1]]."""
-    m = rows.shape[0]
-    out = np.full(m, np.inf)
-    for t in range(m):
+def _ball_min_grid(t0, t1, out, cx, cy, half, rows, cols, x0, y0, h, gx, gy, start, x, y, nx, ny, s, ring_id,
+                   perims, arc_ratio2):
+    """Rows t0 .. t1 − 1 of the scan of :func:`_ball_min` into ``out``: ``cols`` sorted by grid cell, cell c
+    holding cols[start[c]:start[c + 1]] (every row on its own: the same on any number of threads)."""
+    for t in range(t0, t1):
         i = rows[t]
         r = half[t]
         r2 = r * r
@@ -230,7 +251,6 @@ def _ball_min_grid(cx, cy, half, rows, cols, x0, y0, h, gx, gy, start, x, y, nx,
                         continue
                     best = min(best, dd / dn)
         out[t] = best
-    return out
 
 
 def _local_width(xy, nrm, ring_id, s, perims, radii, known=None):
@@ -324,7 +344,10 @@ def _discretise(rings, *, max_panel, min_panel, fractions, grading, ring_caps):
             # every interval with too few samples gets new ones (curvature points do not count)
             big = np.flatnonzero(need > 1)
             if len(big):
-                extra = np.concatenate([s_ext[q] + gap[q] * np.arange(1, need[q]) / need[q] for q in big])
+                per = need[big] - 1
+                q = np.repeat(big, per)
+                j = np.arange(len(q)) - np.repeat(np.cumsum(per) - per, per) + 1
+                extra = s_ext[q] + gap[q] * j / need[q]
                 cand = np.union1d(sp, extra)
                 if len(cand) > len(sp):
                     added = True

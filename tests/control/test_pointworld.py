@@ -20,9 +20,11 @@ from mrodrake.control.pointworld import (
     _assemble,
     _ball_min,
     _chain,
+    _cone_envelope,
     _hole_gaps,
     _kernel,
     _local_width,
+    _prepare_ring,
     _residual,
     _separation,
     _vertex_logs_angles,
@@ -427,6 +429,31 @@ def test_random_layouts_are_valid_maps(free):
     assert np.linalg.det(J).min() > 0.0
     if len(pw.hole_points):
         assert np.linalg.norm(pw.hole_points, axis=1).max() < 1.0
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.lists(st.tuples(st.floats(0.0, 1.0), st.floats(0.01, 5.0)), min_size=1, max_size=40),
+       st.floats(1.0, 100.0), st.floats(0.05, 2.0))
+def test_cone_envelope_is_the_least_graded_size_on_the_closed_ring(samples, perimeter, grading):
+    """The envelope at s_i is min_j h_j + grading × (arc distance from s_i to s_j the shorter way round):
+    the brute-force minimum, up to the rounding of a few sums of numbers below 3 × perimeter."""
+    s = np.sort(np.array([f for f, _ in samples])) * perimeter * (1.0 - 1e-9)
+    h = np.array([v for _, v in samples])
+    d = np.abs(s[:, None] - s[None, :])
+    brute = np.min(h[None, :] + grading * np.minimum(d, perimeter - d), axis=1)
+    env = _cone_envelope(s, h, perimeter, grading)
+    np.testing.assert_allclose(env, brute, rtol=0.0, atol=1e-12 * (1.0 + grading) * perimeter)
+
+
+def test_ring_normals_point_into_the_free_side_and_bisect_at_vertices():
+    """On the outer ring of a 4 × 2 room (counter-clockwise) the normal on an edge is the inward unit normal
+    of that edge; at a corner it is the unit bisector of the two edges' normals."""
+    ring = _prepare_ring(np.array([[0, 0], [4, 0], [4, 2], [0, 2], [0, 0]], dtype=float), is_exterior=True,
+                         curvature_fraction=0.5)
+    s = np.array([1.0, 4.0, 5.0, 6.0, 9.0, 11.0, 0.0])
+    expected = np.array([[0, 1], [-1, 1], [-1, 0], [-1, -1], [0, -1], [1, 0], [1, 1]], dtype=float)
+    expected /= np.linalg.norm(expected, axis=1)[:, None]
+    np.testing.assert_allclose(ring.normal(s), expected, rtol=0.0, atol=1e-15)
 
 
 def test_local_width_sees_a_wall_behind_many_own_samples():
