@@ -31,7 +31,7 @@ import math
 import threading
 import time
 from dataclasses import dataclass
-from functools import cached_property
+from functools import cache, cached_property
 
 import numpy as np
 import scipy.linalg
@@ -41,7 +41,7 @@ from scipy.linalg import get_lapack_funcs
 from scipy.spatial import cKDTree
 from shapely.geometry import MultiPolygon, Polygon
 from shapely.geometry.polygon import orient
-from threadpoolctl import threadpool_limits
+from threadpoolctl import ThreadpoolController
 
 from mrodrake.control.hodlr import MAX_STEPS, MIN_GAIN, BorderedPreconditioner
 from mrodrake.control.treecode import PanelTree, build_tree, in_row_blocks
@@ -670,6 +670,12 @@ def _system(panels, n_holes: int, M: np.ndarray, M32: np.ndarray | None) -> tupl
     return rhs, max(big, 1.0, float(L.max()))  # |W|, the ±1 of b_ℓ and c, the L_j
 
 
+@cache
+def _blas() -> ThreadpoolController:
+    """The BLAS libraries loaded (found once: a fresh scan costs about 2 ms per map)."""
+    return ThreadpoolController()
+
+
 def _solve_hierarchical(M: np.ndarray, rhs: np.ndarray, n: int, points: np.ndarray,
                         scale_m: float) -> np.ndarray | None:
     """Solve M X = rhs (n panels at ``points``, then the border) to float64 accuracy by iterative refinement
@@ -679,7 +685,7 @@ def _solve_hierarchical(M: np.ndarray, rhs: np.ndarray, n: int, points: np.ndarr
     for the few directions the preconditioner gets wrong.  None if the residual bound of
     :func:`_solve_refined` is not met within :data:`~mrodrake.control.hodlr.MAX_STEPS` products.  BLAS runs
     single-threaded (multithreaded LAPACK on these small blocks was over ten times slower on a busy machine)."""
-    with threadpool_limits(limits=1, user_api="blas"):
+    with _blas().limit(limits=1, user_api="blas"):
         try:
             pre = BorderedPreconditioner(M, n, points)
         except np.linalg.LinAlgError:
