@@ -256,16 +256,26 @@ def window_free_space(free: EntityFreeSpace, x, path, radius: float = WINDOW_RAD
     growth, radius / growth², ... down to 2 margin, the first whose map puts x and a waypoint inside its
     circle barrier: the smaller the window, the larger the share of its outer boundary, and of the unit circle,
     that a pocket around x gets (lab, a team leaving its goal between two parked robots and a wall:
-    ‖χ(x)‖ = 0.998 on the map of radius 12 m, 0.994 < ρ₀ = 0.995 on the map of radius 7 m).  Raises ValueError
-    without one."""
-    rho = float(radius)
-    while True:
+    ‖χ(x)‖ = 0.998 on the map of radius 12 m, 0.994 < ρ₀ = 0.995 on the map of radius 7 m).  Of those, the first
+    whose map also resolves x (:func:`resolution` at least :data:`RESOLUTION`): a pocket around x walled by one
+    hole that lies wholly inside the window flattens H there as on the whole map (warehouse, a robot parked
+    against a shelf closed an aisle whose other side was another shelf row: resolution 6e-4 at the start on the
+    map of radius 12 m, and the law ran into the shelf at 2 m/s), a smaller window cuts that hole into its outer
+    boundary; the first at all when none does.  Raises ValueError without one."""
+    rho, first, error = float(radius), None, None
+    while rho >= 2.0 * margin or first is None and error is None:
         try:
-            return _window(free, x, path, rho, margin)
-        except ValueError:
-            rho /= growth
-            if rho < 2.0 * margin:
-                raise
+            found = _window(free, x, path, rho, margin)
+        except ValueError as exc:
+            error = error or exc
+        else:
+            if resolution(found[1], [x])[0] >= RESOLUTION:
+                return found
+            first = first or found
+        rho /= growth
+    if first is None:
+        raise error
+    return first
 
 
 def _window(free: EntityFreeSpace, x, path, radius: float, margin: float) -> tuple[EntityFreeSpace, PointWorldMap]:

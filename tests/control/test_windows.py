@@ -26,6 +26,7 @@ from mrodrake.control.windows import (
     window_free_space,
 )
 from mrodrake.planning.generate import generate_scenario, load_map
+from mrodrake.scenario import scenario_from_dict
 
 WAREHOUSE = load_map("warehouse")
 
@@ -148,6 +149,36 @@ def test_a_start_in_a_pocket_runs_on_a_smaller_window():
     assert inside_circle(wpw, [x, window.goal]).all()
     end = _flow(build_task(sc, window, n_members=1, pw_map=wpw), x, 120.0)
     assert np.linalg.norm(end - x) > 1.0 and shapely.contains_xy(window.polygon, end[0], end[1])
+
+
+def test_a_start_in_an_aisle_closed_by_a_parked_robot_runs_on_a_window_that_resolves_it():
+    """A robot parked across an aisle 2 m wide joins both shelves into one hole, which lies wholly inside the
+    12 m window around a robot that starts in the aisle south of it: H flattens in that dead end on the whole map
+    and on that window alike (resolution ~1e-4 at the start; in the warehouse the law then ran into a shelf at
+    2 m/s).  A smaller window cuts the hole into its outer boundary and resolves the start, and the law leaves
+    the aisle by its open end."""
+    sc = scenario_from_dict({
+        "name": "aisle",
+        "workspace": {"boundary": [[0, 0], [12, 0], [12, 8], [0, 8]],
+                      "obstacles": [{"name": "shelf_w", "polygon": [[3.0, 2.0], [3.8, 2.0], [3.8, 6.0], [3.0, 6.0]]},
+                                    {"name": "shelf_e", "polygon": [[5.8, 2.0], [6.6, 2.0], [6.6, 6.0], [5.8, 6.0]]}]},
+        "regions": [{"name": "p1", "center": [4.8, 3.2], "radius": 0.9},
+                    {"name": "p2", "center": [9.0, 7.0], "radius": 0.7}],
+        "robots": [{"name": "r1", "mass": 1.0, "radius": 0.3, "power": 1, "initial_region": "p1"},
+                   {"name": "r2", "mass": 1.0, "radius": 0.3, "power": 1, "initial_region": "p1"}],
+        "objects": [],
+        "control": {"margin": 0.3},
+        "task": {"formula": "F r1_p2"},
+    })
+    x, goal = np.array([4.8, 2.6]), np.array([9.0, 6.8])
+    free = entity_free_space(sc, 0.3, x, goal, "p1", "p2", [Disk("r2", (4.8, 3.75), 0.38)])
+    assert ["shelf_w", "shelf_e", "r2"] in free.hole_names
+    assert resolution(build_map(free), [x])[0] < RESOLUTION
+    window, wpw = window_free_space(free, x, grid_path(free.polygon, x, goal))
+    assert window.polygon.difference(free.polygon).area < 1e-9
+    assert resolution(wpw, [x])[0] >= RESOLUTION
+    end = _flow(build_task(sc, window, n_members=1, pw_map=wpw), x, 20.0)
+    assert end[1] < 2.0 and shapely.contains_xy(window.polygon, end[0], end[1])  # out of the aisle's south end
 
 
 def test_resolution_is_the_smallest_singular_value_of_the_jacobian():
