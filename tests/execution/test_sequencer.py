@@ -268,3 +268,19 @@ def test_a_stalled_navigation_without_a_window_fails_with_the_reason(tiny):
         st = seq.tick(st, t, X)
     assert st.status is Status.FAILED
     assert "stalled at" in st.message and "no window around it leads on" in st.message
+
+
+def test_a_stalled_navigation_left_on_an_unresolving_map_fails_within_two_periods(tiny):
+    """A motion whose map does not resolve its position and around which no window could be built (its
+    ``world`` cleared) has nothing that moves it on once it stalls: it fails with the reason within two stall
+    periods instead of running to its time limit."""
+    sc, plan, words, placement = tiny
+    seq = Sequencer(sc, plan.ts, words, placement, couplings_of(plan))
+    st, t0, X = _point_world_navigation(seq, placement)
+    st = replace(st, active=replace(st.active, motion=replace(st.active.motion, world=())))
+    t = t0
+    while st.status is Status.RUNNING and t < t0 + 2.0 * seq.stall_period + 1.0:
+        t += 0.5
+        st = seq.tick(st, t, X)
+    assert st.status is Status.FAILED
+    assert "stalled at" in st.message and "neither its map nor a window around it resolves" in st.message
