@@ -23,10 +23,11 @@ if TYPE_CHECKING:
     from mrodrake.systems.mission import MissionLog
 
 
-def run_mission(scenario, plan=None, planner: str = "stylus", suffix_cycles: int = 1, seed: int = 0,
+def run_mission(scenario, plan=None, planner: str = "stylus", suffix_cycles: int = 1, seed: int | None = None,
                 out_dir=None, progress: Callable[[int, int], None] | None = None, **mission_options) -> MissionLog:
     """Plan (unless ``plan`` is given: a Plan or a plan.json path), simulate the prefix and ``suffix_cycles``
-    suffix cycles in one diagram, write the outputs to ``out_dir`` (if given) and return the log."""
+    suffix cycles in one diagram, write the outputs to ``out_dir`` (if given) and return the log.  ``seed``: of
+    the planner and of the layout (default: the scenario's ``planning.seed``; for a given plan, its own layout)."""
     from mrodrake.planning.plan import plan_scenario
     from mrodrake.scenario import Scenario, load_scenario
     from mrodrake.systems.mission import Mission, load_plan
@@ -60,7 +61,8 @@ def add_subparser(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--planner", choices=["stylus", "exact"], default="stylus", help="planner (default stylus)")
     p.add_argument("--plan", metavar="PLAN.json", default=None, help="execute this plan instead of planning")
     p.add_argument("--suffix-cycles", type=int, default=1, metavar="N", help="suffix cycles to simulate (default 1)")
-    p.add_argument("--seed", type=int, default=0, help="seed of the planner and of P_s goal points (default 0)")
+    p.add_argument("--seed", type=int, default=None, help="seed of the planner and of P_s goal points (default: "
+                   "planning.seed; with --plan, the plan's own layout)")
     p.add_argument("--execution", choices=["sequential", "concurrent"], default="sequential",
                    help="one primitive at a time (the paper, default), or every primitive as soon as the "
                    "primitives it depends on are done, concurrent motions on reserved corridors")
@@ -76,7 +78,7 @@ def run(args: argparse.Namespace) -> int:
 
     if args.suffix_cycles < 0:
         raise UserError(f"--suffix-cycles: must be >= 0, got {args.suffix_cycles}")
-    if args.seed < 0:
+    if args.seed is not None and args.seed < 0:
         raise UserError(f"--seed: must be >= 0, got {args.seed}")
     scenario = load_scenario(args.scenario)
     plan = load_plan(scenario, args.plan) if args.plan else None

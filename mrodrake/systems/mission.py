@@ -174,7 +174,8 @@ class Mission:
     case I were rejected (6.6 % capped: 6 % fewer derivative evaluations, the same outcome).
     """
 
-    def __init__(self, scenario: Scenario, plan, suffix_cycles: int = 1, seed: int = 0, *, log_period: float = 0.5,
+    def __init__(self, scenario: Scenario, plan, suffix_cycles: int = 1, seed: int | None = None, *,
+                 log_period: float = 0.5,
                  check_period: float = 0.5, accuracy: float = 3e-3, max_step: float = 0.25,
                  integrator: str = "runge_kutta3", rest_speed: float | None = None,
                  execution: Execution | str = Execution.SEQUENTIAL, prefetch: bool = True):
@@ -182,11 +183,15 @@ class Mission:
             raise UserError(f"--suffix-cycles: must be >= 0, got {suffix_cycles}")
         if plan.scenario != scenario.name:
             raise UserError(f"plan: made for scenario '{plan.scenario}', not '{scenario.name}'")
+        placed = plan.stats.get("placement", {}) if plan.placement is not None else {}
+        if seed is None:  # the plan's own layout
+            seed = placed.get("seed", plan.seed if plan.seed is not None else 0)
+        if int(seed) < 0:
+            raise UserError(f"--seed: must be >= 0, got {seed}")
         self.scenario, self.plan, self.seed = scenario, plan, int(seed)
         self.ts = plan.ts if plan.ts is not None else TransitionSystem(scenario)
         self.formula, self.nba, self.words = task_words(scenario, self.ts)
         t0 = time.perf_counter()
-        placed = plan.stats.get("placement", {}) if plan.placement is not None else {}
         if placed.get("seed") == self.seed and placed.get("suffix_cycles") == suffix_cycles:
             self.placement = plan.placement  # the planner placed this very run (place_run is deterministic)
         else:

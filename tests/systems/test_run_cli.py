@@ -128,3 +128,19 @@ def test_write_failure_keeps_what_it_can(tmp_path, capsys):
     err = capsys.readouterr().err.strip().splitlines()
     assert err[-1].startswith(f"error: could not write 1 output file(s) to {out}/ (events.csv: ")
     assert (out / "trajectory.csv").is_file() and (out / "replay.html").is_file()
+
+
+def test_a_mission_without_a_seed_executes_the_plans_own_layout(tmp_path):
+    """A plan placed with seed 3 (``mrodrake plan --seed 3 -o plan.json``) is executed on that layout by a
+    mission given no seed (``mrodrake run --plan plan.json``), from the plan or its file, not re-placed with 0."""
+    from mrodrake.systems.mission import Mission, load_plan
+
+    sc = load_scenario(TINY)
+    plan = plan_scenario(sc, "stylus", seed=3)
+    assert plan.stats["placement"]["seed"] == 3
+    mission = Mission(sc, plan)
+    assert mission.seed == 3 and mission.placement is plan.placement
+    path = tmp_path / "plan.json"
+    plan.write(path)
+    loaded = Mission(sc, load_plan(sc, path))
+    assert loaded.seed == 3 and loaded.placement.initial == plan.placement.initial
