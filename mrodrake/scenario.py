@@ -27,6 +27,8 @@ from pydantic.dataclasses import dataclass
 
 from mrodrake.errors import UserError
 from mrodrake.geometry import CONTROL_MARGIN
+from mrodrake.logic import atoms, parse
+from mrodrake.logic.formula import AP
 from mrodrake.packing import place
 
 _CFG = ConfigDict(extra="forbid")
@@ -405,6 +407,22 @@ def scenario_from_dict(data: dict[str, Any], source: str = "<dict>") -> Scenario
 # --------------------------------------------------------------------------------------------------
 
 
+def _reads_as_atom(name: str) -> bool:
+    """Does ``name`` parse as the atomic proposition ``name`` (not as operators glued to a name, 'Fa' = F a)?"""
+    try:
+        f = parse(name)
+    except UserError:
+        return False
+    return f.kind == AP and atoms(f) == {name}
+
+
+def _reading(name: str) -> str:
+    try:
+        return f"'{parse(name)}'"
+    except UserError:
+        return "an operator"
+
+
 def _check_names(s: Scenario, where: Where) -> None:
     seen: dict[str, tuple] = {}
     for group in ("robots", "objects", "regions"):
@@ -415,6 +433,11 @@ def _check_names(s: Scenario, where: Where) -> None:
                                 "(starting with a letter), so that '<entity>_<region>' is unambiguous")
             if item.name in seen:
                 raise UserError(f"{where(loc)}: duplicate name '{item.name}' (also {format_path(seen[item.name])})")
+            prop = f"{item.name}_{s.regions[0].name if s.regions else 'p'}"
+            if group != "regions" and not _reads_as_atom(prop):
+                raise UserError(f"{where(loc)}: name '{item.name}' makes its propositions read as LTL operators "
+                                f"('{prop}' parses as {_reading(prop)}): a robot or object name must not start "
+                                "with F, G or X followed by a letter or an underscore")
             seen[item.name] = loc
     obstacle_names: dict[str, tuple] = {}
     for i, obs in enumerate(s.workspace.obstacles):
@@ -429,6 +452,9 @@ def _check_names(s: Scenario, where: Where) -> None:
         loc = ("task", "propositions", name)
         if not IDENTIFIER.match(name):
             raise UserError(f"{where(loc)}: macro name '{name}' must be an identifier")
+        if not _reads_as_atom(name):
+            raise UserError(f"{where(loc)}: macro name '{name}' reads as LTL operators in a formula "
+                            f"({_reading(name)})")
         if name in props or name in seen:
             raise UserError(f"{where(loc)}: macro name '{name}' clashes with a robot, object, region or "
                             "atomic proposition")

@@ -144,6 +144,19 @@ def test_name_rejections():
             "unknown region 'p9'")
 
 
+@pytest.mark.parametrize("group, index, name", [("robots", 1, "G"), ("objects", 0, "Fo"), ("robots", 1, "XGr2")])
+def test_an_entity_name_that_reads_as_ltl_operators_is_rejected(group, index, name):
+    """'G_p1' parses as G(_p1) and 'Fo_p1' as F(o_p1) (operators glued to a name, as in Spot): such a name
+    would silently change what the task says about the entity."""
+    _reject(lambda d: d[group][index].update(name=name), f"{group}[{index}].name", "read as LTL operators")
+
+
+@pytest.mark.parametrize("name", ["F", "GFx", "xor"])
+def test_a_macro_name_that_reads_as_ltl_operators_is_rejected(name):
+    _reject(lambda d: d["task"]["propositions"].update({name: "r1_p1"}), f"task.propositions.{name}",
+            "reads as LTL operators")
+
+
 def test_task_rejections():
     msg = _reject(lambda d: d["task"].update(formula="F G o1_p3 & G F (home"), "task.formula")
     assert "task.formula:17: unclosed" in msg  # column of the unmatched parenthesis
