@@ -80,7 +80,10 @@ def run(args: argparse.Namespace) -> int:
         raise UserError(f"--suffix-cycles: must be >= 0, got {args.suffix_cycles}")
     if args.seed is not None and args.seed < 0:
         raise UserError(f"--seed: must be >= 0, got {args.seed}")
-    scenario = load_scenario(args.scenario)
+    warnings: list[str] = []
+    scenario = load_scenario(args.scenario, warnings=warnings)
+    for w in warnings:  # outside the controllers' design range: the mission runs, without their guarantees
+        print(f"warning: {w}", file=sys.stderr)
     plan = load_plan(scenario, args.plan) if args.plan else None
     out = ensure_output_dir(Path(args.out) if args.out else Path("out") / scenario.name)
     t0 = time.perf_counter()

@@ -26,7 +26,7 @@ from pydantic import ConfigDict, Field, TypeAdapter, ValidationError
 from pydantic.dataclasses import dataclass
 
 from mrodrake.errors import UserError
-from mrodrake.geometry import CONTROL_MARGIN
+from mrodrake.geometry import CONTROL_MARGIN, DOCK_TOL
 from mrodrake.logic import atoms, parse
 from mrodrake.logic.formula import AP
 from mrodrake.packing import place
@@ -54,6 +54,9 @@ DESIGN_ALPHA_MAX = 5.0
 #: of a wall by the panel map's boundary error measured, 0.28 m on the 304 m case-study office, scaled to the
 #: floor (the map's panels are fractions of its diameter, so the error scales with it).
 MARGIN_PER_DIAMETER = 1e-3
+#: Robot radii (m) the control layer's absolute lengths (approach disks, receding windows, departure steps,
+#: docking tolerance) are chosen for.
+DESIGN_ROBOT_RADIUS = (0.25, 1.0)
 DESIGN_MASS_RATIO = 5.0
 
 
@@ -558,7 +561,8 @@ def check_scenario(s: Scenario, where: Where | None = None) -> None:
 def design_range_warnings(s: Scenario, where: Where | None = None) -> list[str]:
     """One line ``<file>:<line>: <field path>: ... outside the design range ...`` per true parameter outside the
     design range of the controllers (:data:`DESIGN_ALPHA_MAX`, :data:`DESIGN_MASS_RATIO`,
-    :data:`MARGIN_PER_DIAMETER`): not an error, the plants simulate any positive mass and friction, but the
+    :data:`MARGIN_PER_DIAMETER`, :data:`DESIGN_ROBOT_RADIUS`, the layout spacing against the docking tolerance):
+    not an error, the plants simulate any positive mass and friction, but the
     controllers' guarantees assume the range."""
     where = where or Where("<scenario>", None)
     c = s.control
@@ -576,6 +580,17 @@ def design_range_warnings(s: Scenario, where: Where | None = None) -> list[str]:
                            f"({b.friction.model} "
                            f"model, scale {b.friction.scale:g}) outside the design range α ≤ {c.alpha_max:g} per body "
                            f"of the controllers (control.alpha_max)")
+    lo_r, hi_r = DESIGN_ROBOT_RADIUS
+    for i, r in enumerate(s.robots):
+        if not lo_r <= r.radius <= hi_r:
+            out.append(f"{where(('robots', i, 'radius'))}: {r.radius:g} m outside the design range [{lo_r:g}, "
+                       f"{hi_r:g}] m of the control layer's absolute lengths (windows, departure steps, docking "
+                       f"tolerance {DOCK_TOL:g} m)")
+    if s.objects and s.layout.spacing < 2.0 * DOCK_TOL:
+        out.append(f"{where(('layout', 'spacing'))}: {s.layout.spacing:g} m below twice the docking tolerance "
+                   f"({2.0 * DOCK_TOL:g} m): a team whose goal keeps spacing/2 to a region's rim may sit partly "
+                   f"outside it with its members docked up to {DOCK_TOL:g} m off their slots, and the transport "
+                   f"does not complete")
     diameter = _diameter(s.workspace.boundary)
     if c.margin < MARGIN_PER_DIAMETER * diameter:
         out.append(f"{where(('control', 'margin'))}: {c.margin:g} m outside the design range ≥ "

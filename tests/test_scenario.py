@@ -233,3 +233,21 @@ def test_cli_validate_warns_outside_the_design_range(tmp_path):
     path.write_text(text + "control: {alpha_max: 6.0}\n")
     res = _cli("validate", str(path))
     assert res.returncode == 0 and "friction" not in res.stderr and "robots[1].mass" in res.stderr
+
+
+def test_centimetre_robots_and_a_spacing_below_the_docking_tolerance_are_warned_about():
+    """Robots outside radius 0.25-1 m (the control layer's absolute lengths) and, with objects to carry, a layout
+    spacing below twice the docking tolerance (a team goal spacing/2 from a rim, members docked up to
+    DOCK_TOL off their slots) are warnings naming the field; the shipped case study gets none."""
+    from mrodrake.geometry import DOCK_TOL
+    from mrodrake.scenario import design_range_warnings, scenario_from_dict
+
+    data = copy.deepcopy(TINY)
+    data["robots"][1]["radius"] = 0.1
+    data["layout"] = dict(data.get("layout", {}), spacing=2.0 * DOCK_TOL - 0.01)
+    warnings = design_range_warnings(scenario_from_dict(data))
+    assert len(warnings) == 2
+    assert "robots[1].radius: 0.1 m outside the design range [0.25, 1] m" in warnings[0]
+    assert "layout.spacing" in warnings[1] and "below twice the docking tolerance" in warnings[1]
+    data["layout"]["spacing"] = 2.0 * DOCK_TOL
+    assert len(design_range_warnings(scenario_from_dict(data))) == 1
