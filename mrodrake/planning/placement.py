@@ -566,6 +566,15 @@ class _Placer:
         xo = w.pos[e]
         if docked and j in w.rotation:
             angles = [w.rotation[j]]
+            slots = layout_slots(ts, j, team, xo, angles[0])
+            for i in docked:  # a member that stays docked keeps its place: it must be the new layout's slot
+                off = math.hypot(*(w.pos[i] - slots[team.index(i)])) if i in team and i not in robots else 0.0
+                if off > DOCK_TOL:
+                    raise PlacementError(
+                        f"{self.where_msg(spec, k)}: {ts.robot_names[i]} stays docked to {ts.object_names[j]} "
+                        f"{off:.2f} m from its slot in the grasp layout of "
+                        f"{'+'.join(ts.robot_names[m] for m in team)} (the executed team would be wider than the "
+                        f"TS's)", spec, k)
         else:  # no slot tucked against the rim; those of teammates that dock later face the region's centre
             angles = list(np.linspace(0.0, 2.0 * math.pi, _ANGLES, endpoint=False))
             later = [team.index(i) for i in team if i not in robots]

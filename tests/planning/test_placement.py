@@ -530,3 +530,21 @@ def test_a_docking_slot_keeps_the_goal_tolerance_of_a_parked_robot():
     w.pos[0] = layout_slots(ts, 0, (0, 2), xo, 0.0)[0]
     assert placer.path_ok(w, 2, p2, slot, set(), anchor=0)
     assert placer.drift(w, 0) == GOAL_TOL + DOCK_TOL and placer.drift(w, 1) == GOAL_TOL
+
+
+def test_a_member_left_docked_off_its_slot_in_the_new_teams_layout_is_rejected():
+    """r1 (radius 0.3) and r3 (0.5) grasp o1; r3 releases and r2 (0.3) grasps while r1 stays docked; r1+r2
+    carry o1 off.  r1 keeps the place it took in the r1+r3 layout (covering radius 1.3 m), 0.2 m from its slot
+    in the r1+r2 layout (0.9 m) that the TS's transport assumes: the executed team would be wider than the
+    TS's, so the grasp is rejected, naming the member, rather than placed."""
+    data = yaml.safe_load((ROOT / "scenarios" / "maps" / "lab.yaml").read_text())
+    data["robots"] = [{"name": n, "mass": 1.0, "radius": r, "power": 4, "initial_region": "p4"}
+                      for n, r in (("r1", 0.3), ("r2", 0.3), ("r3", 0.5))]
+    data["objects"] = [{"name": "o1", "mass": 0.25, "radius": 0.2, "required_power": 4, "initial_region": "p4"}]
+    data["task"] = {"formula": "F o1_p2"}
+    ts = TransitionSystem(scenario_from_dict(data))
+    p2, p4 = (ts.region_names.index(k) for k in ("p2", "p4"))
+    run = [ts.initial, ts.make_state([p4] * 3, [p4], [0, -1, 0]), ts.make_state([p4] * 3, [p4], [0, 0, -1]),
+           ts.make_state([p2, p2, p4], [p2], [0, 0, -1])]
+    with pytest.raises(PlacementError, match=r"step 2 .*r1 stays docked to o1 0\.20 m from its slot .* r1\+r2"):
+        place_run(ts, _steps(ts, run))
