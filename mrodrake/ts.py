@@ -381,7 +381,16 @@ class TransitionSystem:
                 continue
             fits = np.array([m not in unfit for m in range(self.K)])
             passable = reachable(self.connections(r + TEAM_TRAVEL_SLACK) & fits[:, None] & fits[None, :], k)
-            miss = [names[m] for m in range(self.K) if m not in passable and m not in unfit]
+            travel = r + TEAM_TRAVEL_SLACK
+            tight = [m for m in range(self.K)
+                     if m not in passable and m not in unfit and self.region_radius[m] <= travel]
+            if tight:  # the region holds the team's disk but not its travel disk: no seat to arrive at
+                out.append(f"object {self.object_names[j]} can never be carried to "
+                           f"{', '.join(names[m] for m in tight)} from {names[k]}: its smallest team's travel disk "
+                           f"(covering radius {r:.2f} m + slack {TEAM_TRAVEL_SLACK:g} m = {travel:.2f} m) is not "
+                           f"smaller than the region (radi{'us' if len(tight) == 1 else 'i'} "
+                           f"{', '.join(f'{self.region_radius[m]:.2f}' for m in tight)} m)")
+            miss = [names[m] for m in range(self.K) if m not in passable and m not in unfit and m not in tight]
             if miss:
                 out.append(f"object {self.object_names[j]} can never be carried to {', '.join(miss)} from "
                            f"{names[k]}: {_no_passage(self.margin, True)} for its smallest team (covering radius "

@@ -236,3 +236,17 @@ def test_carry_connections_admit_every_transport_of_the_ts(door, radii, powers, 
             for a in ts.actions(s, ets.state(int(v))):
                 if isinstance(a, Transport):
                     assert C is not None and C[a.src, a.dst], (a, C)
+
+
+def test_a_region_that_holds_a_team_but_not_its_travel_disk_is_named_as_such():
+    """p2 of radius 1.94 m holds a team of covering radius 1.9 m (spacing 0.02 m to the rim: 1.92 < 1.94) but
+    not its travel disk (1.9 + slack 0.05 = 1.95 m, whose seat needs a larger region): the object can never be
+    carried there, and the reason given is the region's size, not a door (the 8 m passage is wide open)."""
+    data = two_rooms("F o1_p2", passage=8.0)
+    data["layout"] = dict(data.get("layout", {}), spacing=0.02)
+    data["regions"][1]["radius"] = 1.94
+    ts = TransitionSystem(scenario_from_dict(data))
+    assert ts.smallest_team_radius(0) == pytest.approx(1.9) and ts.region_fits(1, [1.9])
+    lines = [line for line in ts.unreachable() if line.startswith("object o1")]
+    assert len(lines) == 1 and "travel disk (covering radius 1.90 m + slack 0.05 m = 1.95 m)" in lines[0]
+    assert "(radius 1.94 m)" in lines[0] and "no passage" not in lines[0]
