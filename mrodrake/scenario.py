@@ -241,12 +241,18 @@ class _UniqueKeyLoader(yaml.SafeLoader):
     """SafeLoader that rejects duplicate mapping keys (PyYAML keeps the last one silently)."""
 
 
+class _DuplicateKey(Exception):
+    def __init__(self, line: int, key):
+        super().__init__(line, key)
+        self.line, self.key = line, key
+
+
 def _construct_mapping(loader: yaml.SafeLoader, node: yaml.MappingNode, deep: bool = False):
     seen = {}
     for key_node, _ in node.value:
         key = loader.construct_object(key_node, deep=deep)
         if key in seen:
-            raise UserError(f"line {key_node.start_mark.line + 1}: duplicate key '{key}'")
+            raise _DuplicateKey(key_node.start_mark.line + 1, key)
         seen[key] = True
     return loader.construct_mapping(node, deep=deep)
 
@@ -359,8 +365,8 @@ def parse_typed(text: str, source: str, adapter: TypeAdapter, top_level: str) ->
     try:
         root = yaml.compose(text, Loader=_UniqueKeyLoader)
         data = yaml.load(text, Loader=_UniqueKeyLoader)
-    except UserError as e:
-        raise UserError(f"{source}: {e}") from None
+    except _DuplicateKey as e:
+        raise UserError(f"{source}:{e.line}: {e.key}: duplicate key (also given above)") from None
     except yaml.YAMLError as e:
         raise _yaml_error(source, e) from None
     where = Where(source, root)

@@ -179,7 +179,7 @@ def test_formula_error_has_caret():
 def test_yaml_errors():
     with pytest.raises(UserError, match=r"t.yaml:3:1: malformed YAML: .*flow sequence at line 2"):
         parse_scenario("name: x\nworkspace: [1, 2\n", source="t.yaml")
-    with pytest.raises(UserError, match="duplicate key 'name'"):
+    with pytest.raises(UserError, match=r"^t.yaml:2: name: duplicate key"):
         parse_scenario("name: x\nname: y\n", source="t.yaml")
     with pytest.raises(UserError, match="expected a mapping"):
         parse_scenario("- 1\n- 2\n", source="t.yaml")
