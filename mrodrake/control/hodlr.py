@@ -212,7 +212,7 @@ class HodlrInverse:
         jobs = sorted(((k, side) for k in inner for side in (0, 1)),
                       key=lambda job: -(clusters[job[0]].hi - clusters[job[0]].lo))  # largest blocks first
         depth = max(0, math.ceil(math.log2(workers)))  # subtrees factorised on threads of their own
-        with ThreadPoolExecutor(max(1, 2**depth - 1)) as pool:
+        with ThreadPoolExecutor(max(workers, 2**depth - 1)) as pool:  # the map runs on all, the recursion needs 2^d - 1
             for (k, side), (ut, vt) in zip(jobs, pool.map(self._cross, jobs)):
                 if side == 0:
                     clusters[k].U1, clusters[k].V1 = ut.T, vt.T
