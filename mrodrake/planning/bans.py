@@ -5,12 +5,14 @@ step's *local situation*: which entities, with which grasps, are in that region 
 travels in or out of connect it to, before and after the step.  Everything else the step does happens
 elsewhere, so the same failure comes back under another transition with the same local situation.
 :class:`Bans` therefore bans, besides each rejected transition, every transition with the local situation of
-a rejected one (both directions, as the rejected pairs).
+a rejected one (both directions, as the rejected pairs).  A grasp rejected because a member that stays docked
+is off its slot in the new team's layout bans that change of team everywhere (:class:`SwapBan`).
 
 Placement depends on where earlier steps put the entities and on what later steps bring, so a local ban may
-exclude a plan that placement could realise.  Only STyLuS*'s first search honours local bans; the exact
-planner and the extended search avoid the rejected transitions alone, and a rejection never enters a proof
-of unsatisfiability.
+exclude a plan that placement could realise.  Only STyLuS*'s first search honours local bans; the extended
+search honours swap bans too (a team change whose staying member is off its new slot never places, wherever it
+happens: without them the extended search offered one such change after another), the exact planner avoids the
+rejected transitions alone, and a rejection never enters a proof of unsatisfiability.
 """
 
 from __future__ import annotations
@@ -48,6 +50,36 @@ class LocalBan:
         return ls == self.after and _local(t, self.regions, n) == self.before
 
 
+@dataclass(frozen=True)
+class SwapBan:
+    """A change of object ``obj``'s team to ``after`` in which the members ``stay`` stay docked, which placement
+    rejected because a staying member's slot in the new team's grasp layout is not where it is docked (a matter
+    of the members' radii, not of where it happens): every change to ``after`` from a team holding ``stay`` is
+    banned, in both directions."""
+
+    obj: int
+    stay: frozenset[int]
+    after: frozenset[int]
+
+    @staticmethod
+    def of(ts: TransitionSystem, s: State, t: State, obj: int) -> SwapBan:
+        n = ts.N + ts.M
+        before, after = _team(s, obj, ts.N, n), _team(t, obj, ts.N, n)
+        return SwapBan(obj, before & after, after)
+
+    def matches(self, s: State, t: State, n_robots: int, n: int) -> bool:
+        a, b = _team(s, self.obj, n_robots, n), _team(t, self.obj, n_robots, n)
+        return (b == self.after and self.stay <= a != b) or (a == self.after and self.stay <= b != a)
+
+    def touches(self, s: State, n_robots: int, n: int) -> bool:
+        team = _team(s, self.obj, n_robots, n)
+        return team == self.after or self.stay <= team
+
+
+def _team(s: State, obj: int, n_robots: int, n: int) -> frozenset[int]:
+    return frozenset(i for i in range(n_robots) if s[n + i] == obj)
+
+
 def local(ts: TransitionSystem, s: State, regions: frozenset[int]) -> tuple[int, ...]:
     """Per entity its region if in ``regions`` else −1, then each robot's grasp if it is in them."""
     return _local(s, regions, ts.N + ts.M)
@@ -63,22 +95,26 @@ class Bans:
     pairs (both directions) and transitions with the local situation of a :class:`LocalBan`."""
 
     def __init__(self, ts: TransitionSystem, pairs: Iterable[tuple[State, State]] = (),
-                 local_bans: Iterable[LocalBan] = ()):
+                 local_bans: Iterable[LocalBan | SwapBan] = ()):
         self.n = ts.N + getattr(ts, "M", 0)  # graph TSs have robots only
+        self.n_robots = ts.N
         self.pairs: dict[State, set[State]] = {}
         for a, b in pairs:
             self.pairs.setdefault(tuple(a), set()).add(tuple(b))
             self.pairs.setdefault(tuple(b), set()).add(tuple(a))
-        self.local = list(dict.fromkeys(local_bans))
+        bans = list(dict.fromkeys(local_bans))
+        self.swaps = [b for b in bans if isinstance(b, SwapBan)]
+        self.local = [b for b in bans if isinstance(b, LocalBan)]
         self._sides = {(ban.regions, side) for ban in self.local for side in (ban.before, ban.after)}
         self._regions = list(dict.fromkeys(ban.regions for ban in self.local))
 
     def __bool__(self) -> bool:
-        return bool(self.pairs or self.local)
+        return bool(self.pairs or self.local or self.swaps)
 
     def __contains__(self, s: State) -> bool:
-        return s in self.pairs or any((regions, _local(s, regions, self.n)) in self._sides
-                                      for regions in self._regions)
+        return (s in self.pairs
+                or any((regions, _local(s, regions, self.n)) in self._sides for regions in self._regions)
+                or any(b.touches(s, self.n_robots, self.n) for b in self.swaps))
 
     def __getitem__(self, s: State) -> _Neighbours:
         return _Neighbours(self, s)
@@ -87,7 +123,8 @@ class Bans:
         return _Neighbours(self, s)
 
     def banned(self, s: State, t: State) -> bool:
-        return t in self.pairs.get(s, ()) or any(ban.matches(s, t, self.n) for ban in self.local)
+        return (t in self.pairs.get(s, ()) or any(ban.matches(s, t, self.n) for ban in self.local)
+                or any(ban.matches(s, t, self.n_robots, self.n) for ban in self.swaps))
 
 
 class _Neighbours:

@@ -108,11 +108,12 @@ class Placement:
 class PlacementError(UserError):
     """The executed run needs room a region does not have (one line naming the step and the region);
     ``step`` is the executed step that failed, or for an initial layout that cannot keep the room a later step
-    needs, that step (None: an initial layout that fails by itself), and ``region`` its region."""
+    needs, that step (None: an initial layout that fails by itself), and ``region`` its region; ``swap``: the
+    object whose change of team failed because a member that stays docked is off its new slot (else −1)."""
 
-    def __init__(self, message: str, step: StepSpec | None = None, region: int = -1):
+    def __init__(self, message: str, step: StepSpec | None = None, region: int = -1, swap: int = -1):
         super().__init__(message)
-        self.step, self.region = step, region
+        self.step, self.region, self.swap = step, region, swap
 
 
 class _Retry(Exception):
@@ -566,15 +567,21 @@ class _Placer:
         xo = w.pos[e]
         if docked and j in w.rotation:
             angles = [w.rotation[j]]
+            stay = [i for i in docked if i in team and i not in robots]
             slots = layout_slots(ts, j, team, xo, angles[0])
-            for i in docked:  # a member that stays docked keeps its place: it must be the new layout's slot
-                off = math.hypot(*(w.pos[i] - slots[team.index(i)])) if i in team and i not in robots else 0.0
+            if stay and math.hypot(*(w.pos[stay[0]] - slots[team.index(stay[0])])) > DOCK_TOL:
+                # the team changed: turn the new layout so that the first member that stays docked is on its slot
+                q, d = slots[team.index(stay[0])] - xo, w.pos[stay[0]] - xo
+                angles = [angles[0] + math.atan2(d[1], d[0]) - math.atan2(q[1], q[0])]
+                slots = layout_slots(ts, j, team, xo, angles[0])
+            for i in stay:  # a member that stays docked keeps its place: it must be the new layout's slot
+                off = math.hypot(*(w.pos[i] - slots[team.index(i)]))
                 if off > DOCK_TOL:
                     raise PlacementError(
                         f"{self.where_msg(spec, k)}: {ts.robot_names[i]} stays docked to {ts.object_names[j]} "
                         f"{off:.2f} m from its slot in the grasp layout of "
                         f"{'+'.join(ts.robot_names[m] for m in team)} (the executed team would be wider than the "
-                        f"TS's)", spec, k)
+                        f"TS's)", spec, k, swap=j)
         else:  # no slot tucked against the rim; those of teammates that dock later face the region's centre
             angles = list(np.linspace(0.0, 2.0 * math.pi, _ANGLES, endpoint=False))
             later = [team.index(i) for i in team if i not in robots]

@@ -61,7 +61,7 @@ from mrodrake.logic.formula import Formula, atoms
 from mrodrake.logic.nba import NBA
 from mrodrake.logic.parse import parse
 from mrodrake.logic.translate import translate
-from mrodrake.planning.bans import Bans, LocalBan
+from mrodrake.planning.bans import Bans, LocalBan, SwapBan
 from mrodrake.planning.decide import EXACT_BOUND, decide
 from mrodrake.planning.exact import check_power, solve_exact, solve_exact_graph
 from mrodrake.planning.graph import GraphTS, load_graph_ts
@@ -420,8 +420,9 @@ def plan_scenario(scenario, planner: str = "stylus", seed: int | None = None, it
     when its executed run (the prefix and ``suffix_cycles`` suffix cycles) places
     (:func:`~mrodrake.planning.placement.place_plan` with ``layout_seed``, default the planner's seed or 0: what
     ``Mission(seed=...)`` uses); a plan placement rejects bans the step that failed, and for STyLuS*'s first
-    search every step with the same local situation in the failed region (:mod:`mrodrake.planning.bans`), and the
-    planner searches again (``place=False``: no placement).
+    search every step with the same local situation in the failed region (for every search, a team change whose
+    staying member is off its new slot: :mod:`mrodrake.planning.bans`), and the planner searches again
+    (``place=False``: no placement).
     When STyLuS* finds no plan within ``iterations``, :func:`~mrodrake.planning.decide.decide` tries to prove
     the task unsatisfiable (relaxations; the exact search when the product is small, whose plan is used), and
     otherwise STyLuS* samples up to :data:`EXTEND_FACTOR` times as long.  Unsatisfiable tasks raise a
@@ -453,7 +454,7 @@ def _plan_scenario(scenario, planner, seed, iterations, time_limit, progress, re
     lay_seed = int(layout_seed) if layout_seed is not None else (used_seed or 0)
     report = (lambda msg: progress({"message": msg})) if progress else None
     banned: list[tuple[State, State]] = []
-    local_bans: list[LocalBan] = []
+    local_bans: list[LocalBan | SwapBan] = []
     rejected: list[str] = []
     decision = None
     while True:
@@ -476,7 +477,9 @@ def _plan_scenario(scenario, planner, seed, iterations, time_limit, progress, re
                     res.stats["stylus"] = f"{first}; the exact planner found this plan"
                 else:
                     try:
-                        res = Stylus(ts, nba, words.relevant, seed=used_seed, replan=replan, banned=banned).run(
+                        swaps = [b for b in local_bans if isinstance(b, SwapBan)]
+                        res = Stylus(ts, nba, words.relevant, seed=used_seed, replan=replan,
+                                     banned=Bans(ts, banned, swaps)).run(
                             its, time_limit=time_limit, progress=progress, extend_iterations=EXTEND_FACTOR * its)
                     except NoPlanFound as e:
                         raise NoPlanFound(f"{e}; {decision.undecided}" + _rejections(rejected)) from None
@@ -492,7 +495,9 @@ def _plan_scenario(scenario, planner, seed, iterations, time_limit, progress, re
                 raise NoPlanFound(f"no plan found whose executed run places: placement rejected {len(rejected)} "
                                   f"plans (last: {e}); satisfiability unknown") from None
             banned.append(edge)
-            if e.step is not None and e.region >= 0:
+            if e.step is not None and e.swap >= 0:
+                local_bans.append(SwapBan.of(ts, tuple(e.step.src), tuple(e.step.dst), e.swap))
+            elif e.step is not None and e.region >= 0:
                 local_bans.append(LocalBan.of(ts, tuple(e.step.src), tuple(e.step.dst), e.region))
             if report:
                 report(f"placement rejected a plan ({e}); planning again without that step")

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from mrodrake.planning import plan as plan_module
-from mrodrake.planning.bans import Bans, LocalBan
+from mrodrake.planning.bans import Bans, LocalBan, SwapBan
 from mrodrake.planning.placement import PlacementError
 from mrodrake.planning.plan import plan_scenario
 from mrodrake.planning.steps import expand_steps
@@ -28,6 +28,21 @@ def test_local_ban_ignores_what_happens_in_other_regions(tiny):
     assert kept.banned(_state(ts, [2, 1], [0], [-1, -1]), s)  # both directions
     assert not kept.banned(s, _state(ts, [0, 2], [0], [-1, -1]))  # r2 leaves p2
     assert s in kept and _state(ts, [2, 1], [0], [-1, -1]) in kept.get(s)
+
+
+def test_a_swap_ban_bans_every_change_to_the_team_that_keeps_the_staying_member(tiny):
+    """r1 stays docked to o1 while r2 joins (team {r1} -> {r1, r2}) was rejected: any change to {r1, r2} from
+    a team holding r1 is banned, in either direction and wherever the entities are; forming {r1, r2} around a
+    free object, or a change to another team, is not."""
+    ts = tiny.ts
+    ban = SwapBan.of(ts, _state(ts, [0, 0], [0], [0, -1]), _state(ts, [0, 0], [0], [0, 0]), 0)
+    assert ban == SwapBan(0, frozenset({0}), frozenset({0, 1}))
+    bans = Bans(ts, (), [ban])
+    assert bans.banned(_state(ts, [2, 2], [2], [0, -1]), _state(ts, [2, 2], [2], [0, 0]))  # elsewhere
+    assert bans.banned(_state(ts, [2, 2], [2], [0, 0]), _state(ts, [2, 2], [2], [0, -1]))  # and back
+    assert not bans.banned(_state(ts, [0, 0], [0], [-1, -1]), _state(ts, [0, 0], [0], [0, 0]))  # a free object
+    assert not bans.banned(_state(ts, [0, 0], [0], [0, 0]), _state(ts, [0, 0], [0], [-1, 0]))  # r2 stays instead
+    assert _state(ts, [2, 2], [2], [0, -1]) in bans and _state(ts, [0, 0], [0], [-1, -1]) not in bans
 
 
 def test_rejected_pairs_are_banned_both_ways(tiny):
