@@ -380,8 +380,8 @@ class TransitionSystem:
                            f"{sum(self.power[i] for i in crew):g}, needs {self.required_power[j]:g})")
                 continue
             fits = np.array([m not in unfit for m in range(self.K)])
-            passable = reachable(self.connections(r + TEAM_TRAVEL_SLACK) & fits[:, None] & fits[None, :], k)
             travel = r + TEAM_TRAVEL_SLACK
+            passable = reachable(self.connections(travel) & fits[:, None] & fits[None, :], k)
             tight = [m for m in range(self.K)
                      if m not in passable and m not in unfit and self.region_radius[m] <= travel]
             if tight:  # the region holds the team's disk but not its travel disk: no seat to arrive at

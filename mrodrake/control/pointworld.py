@@ -168,7 +168,7 @@ def _cone_envelope(s: np.ndarray, h: np.ndarray, perimeter: float, grading: floa
     s3 = np.empty(3 * n)
     for c in range(3):
         for i in range(n):
-            s3[c * n + i] = s[i] + (c - 1) * perimeter if c != 1 else s[i]
+            s3[c * n + i] = s[i] + (c - 1) * perimeter
     fwd = np.empty(3 * n)
     run = np.inf
     for i in range(3 * n):

@@ -263,7 +263,7 @@ def window_free_space(free: EntityFreeSpace, x, path, radius: float = WINDOW_RAD
     map of radius 12 m, and the law ran into the shelf at 2 m/s), a smaller window cuts that hole into its outer
     boundary; the first at all when none does.  Raises ValueError without one."""
     rho, first, error = float(radius), None, None
-    while rho >= 2.0 * margin or first is None and error is None:
+    while True:
         try:
             found = _window(free, x, path, rho, margin)
         except ValueError as exc:
@@ -273,6 +273,8 @@ def window_free_space(free: EntityFreeSpace, x, path, radius: float = WINDOW_RAD
                 return found
             first = first or found
         rho /= growth
+        if rho < 2.0 * margin:
+            break
     if first is None:
         raise error
     return first

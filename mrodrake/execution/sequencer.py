@@ -955,8 +955,8 @@ class Sequencer:
         (:meth:`_unstall`).  A window whose waypoint is nearer than twice WINDOW_SWITCH (a small window, a
         waypoint short of a pocket) is left halfway to it, not at the next tick.  A motion left on the map of the
         whole motion because no window could be built there (``world`` cleared) fails when it stalls: nothing
-        else would move it on (a 7 cm channel beside a parked robot held a navigation 17 minutes of wall time in
-        step rejections before its map degenerated)."""
+        else would move it on (in a channel narrower than its map resolves, the integrator otherwise rejects
+        step after step until the map degenerates there)."""
         if m.kind not in (OpKind.NAVIGATE, OpKind.TRANSPORT) or m.legs is not None or not (m.world or m.anchor):
             return m
         x = X[m.entity, :2]
