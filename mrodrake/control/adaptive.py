@@ -66,8 +66,8 @@ from dataclasses import dataclass
 from typing import NamedTuple
 
 import numpy as np
-from numba import njit
 
+from mrodrake.control.compiled import cached_njit
 from mrodrake.control.navfunc import TAU_FRACTION, Barriers, phi_terms, velocity_point
 from mrodrake.control.treecode import tree_point
 
@@ -136,7 +136,7 @@ def saturate_velocity(v: np.ndarray, vdot: np.ndarray, v_max: float) -> tuple[np
     return np.array([v0, v1]), np.array([a0, a1])
 
 
-@njit(cache=True, nogil=True)
+@cached_njit(nogil=True)
 def _saturate(v0: float, v1: float, a0: float, a1: float, v_max: float) -> tuple[float, float, float, float]:
     """:func:`saturate_velocity` on the components (σ(v), Dσ(v) v̇) of v = (v0, v1), v̇ = (a0, a1)."""
     if not math.isfinite(v_max):
@@ -151,7 +151,7 @@ def _saturate(v0: float, v1: float, a0: float, a1: float, v_max: float) -> tuple
 _OUTSIDE, _DEGENERATE = 1, 2  # statuses of _law_values and _law_point besides 0 (the law is defined)
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
+@cached_njit(nogil=True, error_model="numpy")
 def _law_values(u, v, a, b, c, d, h000, h001, h100, h101, w0, w1, m_hat, alpha_hat, gd0, gd1, centers, rho2,
                 sign, taus, cnorm, k1, k2, k_phi, k_v, k_m, k_alpha, v_max, out):
     """The law at one state from the map's values there (H = (u, v), J_H = [[a, b], [c, d]], Hessian entries as
@@ -178,7 +178,7 @@ def _law_values(u, v, a, b, c, d, h000, h001, h100, h101, w0, w1, m_hat, alpha_h
     return 0
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
+@cached_njit(nogil=True, error_model="numpy")
 def _law_point(x0, x1, w0, w1, m_hat, alpha_hat, vert, links, nodef, nodei, coef, params, gd0, gd1, centers, rho2,
                sign, taus, cnorm, k1, k2, k_phi, k_v, k_m, k_alpha, v_max, out):
     """:func:`_law_values` at x = (x0, x1) with the map's values from its treecode (:func:`tree_point`)."""

@@ -24,8 +24,8 @@ from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit
 
+from mrodrake.control.compiled import cached_njit
 from mrodrake.control.treecode import usable_cores
 
 #: Panels per leaf cluster at most.
@@ -42,7 +42,7 @@ MAX_STEPS = 12
 MIN_GAIN = 1e-2
 
 
-@njit(cache=True, nogil=True, fastmath={"reassoc", "contract"})
+@cached_njit(nogil=True, fastmath={"reassoc", "contract"})
 def _aca(M, rows, cols, shift, tol):
     """Cross approximation U Vᵀ of the block (M[rows[i], cols[j]] − shift[cols[j]]) with partial pivoting:
     stops after two consecutive crosses |u| |v| ≤ tol ‖U Vᵀ‖_F (or at full rank).  Returns Uᵀ and Vᵀ."""

@@ -14,7 +14,8 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit
+
+from mrodrake.control.compiled import cached_njit
 
 R_BAR_CAP = 0.1  # scenario default for r̄ (an upper bound; the map's b_ℓ may force a smaller one)
 TAU_FRACTION = 0.9  # τ = TAU_FRACTION × min(r̄², r̄_d): strictly inside the interval of Prop. 1
@@ -31,7 +32,7 @@ def beta(x, tau: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return b.reshape(x.shape), db.reshape(x.shape), ddb.reshape(x.shape)
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
+@cached_njit(nogil=True, error_model="numpy")
 def _beta_point(x, tau):
     """β(x), β'(x), β''(x) of :func:`beta` at one x (the only implementation of eq. (8))."""
     if not x < tau:
@@ -43,7 +44,7 @@ def _beta_point(x, tau):
     return 1.0 / P, -dP / (P * P) / tau, (2.0 * dP * dP / P - ddP) / (P * P) / (tau * tau)
 
 
-@njit(cache=True, nogil=True)
+@cached_njit(nogil=True)
 def _beta_array(x, tau):
     b, db, ddb = np.empty(len(x)), np.empty(len(x)), np.empty(len(x))
     for i in range(len(x)):
@@ -138,7 +139,7 @@ def phi_terms(chi: np.ndarray, goal: np.ndarray, bar: Barriers, k1: float,
     return value, np.array([gx, gy]), np.array([[hxx, hxy], [hxy, hyy]])
 
 
-@njit(cache=True, nogil=True)
+@cached_njit(nogil=True)
 def _phi_point(c0, c1, g0, g1, centers, rho2, sign, taus, cnorm, k1, k2):
     """(φ, ∂φ/∂χ_0, ∂φ/∂χ_1, ∂²φ/∂χ_0², ∂²φ/∂χ_0∂χ_1, ∂²φ/∂χ_1²) of :func:`phi_terms` at χ = (c0, c1), with
     β of :func:`_beta_point` per active barrier (grad d_ℓ = 2 s_ℓ (χ − c_ℓ), ∇²d_ℓ = 2 s_ℓ I)."""
@@ -240,7 +241,7 @@ def desired_velocity(pw_map, nf: NavigationFunction, x, xdot):
     return out[3:5].copy(), out[5:7].copy(), J, out[1:3].copy(), float(out[0])
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
+@cached_njit(nogil=True, error_model="numpy")
 def velocity_point(u, v, a, b, c, d, h000, h001, h100, h101, w0, w1, g0, g1, centers, rho2, sign, taus, cnorm,
                    k1, k2, out):
     """eq. (9) and its time derivative at one point, from H = (u, v), J_H = [[a, b], [c, d]] and the Hessian

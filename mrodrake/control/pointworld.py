@@ -36,15 +36,15 @@ from functools import cache, cached_property
 import numpy as np
 import scipy.linalg
 import shapely
-from numba import njit
 from scipy.linalg import get_lapack_funcs
 from scipy.spatial import cKDTree
 from shapely.geometry import MultiPolygon, Polygon
 from shapely.geometry.polygon import orient
 from threadpoolctl import ThreadpoolController
 
+from mrodrake.control.compiled import cached_njit
 from mrodrake.control.hodlr import MAX_STEPS, MIN_GAIN, BorderedPreconditioner
-from mrodrake.control.treecode import PanelTree, build_tree, in_row_blocks
+from mrodrake.control.treecode import PanelTree, build_tree, in_row_blocks, tree_point_arrays
 from mrodrake.errors import UserError
 
 _SHARP_ANGLE = math.radians(30.0)  # vertices turning more than this are kept as panel ends
@@ -94,7 +94,7 @@ class _Ring:
         return _ring_normals(np.asarray(s, dtype=float), self.cum, self.tangents, 1e-12 * max(self.perimeter, 1.0))
 
 
-@njit(cache=True, nogil=True)
+@cached_njit(nogil=True)
 def _ring_normals(s, cum, tang, atol):
     """Normals of :meth:`_Ring.normal`: the left normal of the edge holding arc position s[i] (the last edge
     at or before it), of the bisector of the two edges at a vertex (within ``atol``) unless they turn back."""
@@ -160,7 +160,7 @@ def _prepare_ring(coords: np.ndarray, *, is_exterior: bool, curvature_fraction: 
     )
 
 
-@njit(cache=True, nogil=True)
+@cached_njit(nogil=True)
 def _cone_envelope(s: np.ndarray, h: np.ndarray, perimeter: float, grading: float) -> np.ndarray:
     """min_j (h_j + grading · circular arc distance(s_i, s_j)) on a closed ring (exact, O(n)): running minima
     of h_j ∓ grading s_j over three copies of the ring, forwards and backwards."""
@@ -215,7 +215,7 @@ def _ball_min(rows, width, cols, geom):
     return out
 
 
-@njit(cache=True, nogil=True)
+@cached_njit(nogil=True)
 def _ball_min_grid(t0, t1, out, cx, cy, half, rows, cols, x0, y0, h, gx, gy, start, x, y, nx, ny, s, ring_id,
                    perims, arc_ratio2):
     """Rows t0 .. t1 − 1 of the scan of :func:`_ball_min` into ``out``: ``cols`` sorted by grid cell, cell c
@@ -427,7 +427,7 @@ def _assemble(mx, my, vx, vy, tx, ty, L, col, M, M32=None) -> float:
                              M32 if copy32 else M[:1, :1].astype(np.float32), copy32))
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
+@cached_njit(nogil=True, error_model="numpy")
 def _assemble_rows(i0, i1, mx, my, vx, vy, tx, ty, L, runs, M, M32, copy32):
     """Rows i0 .. i1 − 1 of :func:`_assemble`, also written to ``M32`` if ``copy32`` (``runs``: first link,
     one-past-last link and first column of every run of real links); returns their largest |W|.  Per row,
@@ -478,7 +478,7 @@ _TAN_3PI_16 = 0.6681786379192989
 _TAN_PI_8 = 0.41421356237309503
 
 
-@njit(cache=True, fastmath={"contract"})
+@cached_njit(fastmath={"contract"})
 def _odd_series_tail(w):
     """p(w) = Σ_{k=1}^{10} w^(k−1) / (2k + 1), so that atanh(s) = s + s · s² p(s²) and atan(u) = u − u · u²
     p(−u²); the first omitted term is below 1e-17 relative for |w| ≤ 0.04.  Horner steps may use fused
@@ -495,7 +495,7 @@ def _odd_series_tail(w):
     return 1.0 / 3.0 + w * p
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
+@cached_njit(nogil=True, error_model="numpy")
 def _vertex_logs_angles(x, y, vx, vy, lr, ang, r2, mant, expo):
     """lr[k] = ln max(|p − v_k|², 1e-300) and ang[k] = atan2 of p − v_k for p = (x, y), within a few units in
     the last place of the C library's functions (tested).  Written without calls or branches so that the
@@ -767,7 +767,7 @@ def _residual(M: np.ndarray, x: np.ndarray, rhs: np.ndarray) -> np.ndarray:
     return out
 
 
-@njit(cache=True, nogil=True, fastmath={"reassoc", "contract"})
+@cached_njit(nogil=True, fastmath={"reassoc", "contract"})
 def _residual_rows(i0, i1, M, x0, x1, rhs, out):
     """Rows i0 .. i1 − 1 of :func:`_residual` (each row's dot products summed in vector lanes; infinities and
     NaNs propagate as without reassociation)."""
@@ -1058,39 +1058,39 @@ class PointWorldMap:
         return Hv, Jv, Hs
 
     def _eval_point(self, x: float, y: float, derivs: bool):
-        out = self.tree.evaluate(x, y, derivs)
+        t = self.tree
+        buf = np.empty(14)
+        tree_point_arrays(x, y, derivs, t.vert, t.links, t.nodef, t.nodei, t.coef, t.params, buf)
         if not derivs:
-            return out[0:2], None, None
-        u, v, ux, uy, vx, vy, uxx, uxy, vxx, vxy = out.tolist()
-        return (out[0:2], np.array([[ux, uy], [vx, vy]]),
-                np.array([[[uxx, uxy], [uxy, -uxx]], [[vxx, vxy], [vxy, -vxx]]]))
+            return buf[0:2], None, None
+        return buf[0:2], buf[2:6].reshape(2, 2), buf[6:14].reshape(2, 2, 2)
 
     def __call__(self, x) -> np.ndarray:
         """χ = H(x) for x of shape (2,) or (n, 2)."""
         pts, single = _as_points(x)
         if single:
-            return self._eval_point(pts[0, 0], pts[0, 1], False)[0]
+            return self._eval_point(*pts[0].tolist(), False)[0]
         return self._eval(pts, want_derivs=False)[0]
 
     def jacobian(self, x) -> np.ndarray:
         """J_H(x)[k, i] = ∂H_k/∂x_i, shape (2, 2) or (n, 2, 2)."""
         pts, single = _as_points(x)
         if single:
-            return self._eval_point(pts[0, 0], pts[0, 1], True)[1]
+            return self._eval_point(*pts[0].tolist(), True)[1]
         return self._eval(pts)[1]
 
     def hessians(self, x) -> np.ndarray:
         """Hess[k, i, j] = ∂²H_k/∂x_i∂x_j, shape (2, 2, 2) or (n, 2, 2, 2)."""
         pts, single = _as_points(x)
         if single:
-            return self._eval_point(pts[0, 0], pts[0, 1], True)[2]
+            return self._eval_point(*pts[0].tolist(), True)[2]
         return self._eval(pts)[2]
 
     def evaluate(self, x) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(H, J_H, Hessians) at x, sharing the kernel work."""
         pts, single = _as_points(x)
         if single:
-            return self._eval_point(pts[0, 0], pts[0, 1], True)
+            return self._eval_point(*pts[0].tolist(), True)
         return self._eval(pts)
 
     # ------------------------------------------------------------------ diagnostics and inverse

@@ -19,8 +19,8 @@ Truncation after p = P (tails of geometric series, |ζ| ≤ r):
     |Δ∂_i∂_j u|  ≤ 2 S r^{P+1} ((P + 2) − (P + 1) r) / (ρ² (1 − r)²).
 
 A cluster is summed by its expansion when the P these bounds need for tolerances ε · S / S_tot (S_tot: the
-total Σ |σ_j| L_j of the component) is at most ``order``; otherwise its two halves are tried, and a leaf (a
-run of consecutive panels of one ring) is summed directly with the closed forms of
+total Σ |σ_j| L_j of the component) is at most ``order``; otherwise its two halves are tried, and a leaf (a run
+of consecutive panels of one ring) is summed directly with the closed forms of
 :mod:`mrodrake.control.pointworld`.  The clusters summed by expansion are disjoint, so the total error of u,
 of every first and of every second derivative is at most ε_H, ε_J and ε_Hess (plus rounding).
 """
@@ -32,12 +32,13 @@ import os
 from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
-from numba import njit
+
+from mrodrake.control.compiled import cached_njit
 
 #: Panels per leaf (a run of consecutive panels on one ring).
 LEAF_PANELS = 16
 #: Highest term of the stored expansions.
-ORDER = 30
+ORDER = 50
 #: Largest R / ρ at which a cluster's expansion is used.
 MAX_RATIO = 0.6
 #: Points per thread at least before a batch evaluation is split over threads.
@@ -72,10 +73,11 @@ class PanelTree:
     def __init__(self, vert, links, nodef, nodei, coef, params):
         self.vert = vert  # (nv, 2) chain vertices
         self.links = links  # (nl, 5): tx, ty, L, σ_u, σ_v per link (σ = 0 on the links between rings)
-        self.nodef = nodef  # (nn, 3): centre x, y and radius R
+        self.nodef = nodef  # (nn, 4): centre x, y, radius R and ln R
         self.nodei = nodei  # (nn, 4): children (−1 at a leaf), first and one-past-last link of a leaf
         self.coef = coef  # (nn, 2, 3, ORDER + 1) complex: m_p / p, m_p, (p + 1) m_p per component
-        self.params = params  # ε_H/(2 S_tot), ε_J/(2 S_tot), ε_Hess/(2 S_tot (ORDER + 2)), const_u, const_v, ratio²
+        # ln ε_H/(2 S_tot), ln ε_J/(2 S_tot), ln ε_Hess/(2 S_tot (ORDER + 2)), const_u, const_v, ratio²
+        self.params = params
 
     def evaluate(self, x: float, y: float, derivs: bool = True) -> np.ndarray:
         """[u, v, ∂x u, ∂y u, ∂x v, ∂y v, u_xx, u_xy, v_xx, v_xy] at one point (see ``tree_point``)."""
@@ -94,7 +96,7 @@ class PanelTree:
         return out
 
 
-@njit(cache=True, nogil=True)
+@cached_njit(nogil=True)
 def _leaves(ring_of_link, real, lengths, max_panels, max_length):
     """(first, end) link ranges, shape (k, 2): runs of consecutive real links of one ring, at most
     ``max_panels`` links and (beyond their first link) at most ``max_length`` long each."""
@@ -119,7 +121,7 @@ def _leaves(ring_of_link, real, lengths, max_panels, max_length):
     return out[:count]
 
 
-@njit(cache=True, nogil=True)
+@cached_njit(nogil=True)
 def _leaf_boxes(vert, leaves):
     """Bounding boxes (lower, upper corners) of the vertices of every leaf."""
     m = leaves.shape[0]
@@ -137,7 +139,7 @@ def _leaf_boxes(vert, leaves):
     return lo, hi
 
 
-@njit(cache=True, nogil=True)
+@cached_njit(nogil=True)
 def _stable_sort_by(order, lo, hi, key, axis, work):
     """Sort order[lo:hi] by key[order, axis] keeping the order of equal keys (bottom-up merge sort; ``work``
     is scratch of the length of ``order``)."""
@@ -163,7 +165,7 @@ def _stable_sort_by(order, lo, hi, key, axis, work):
             order[t] = work[t]
 
 
-@njit(cache=True, nogil=True)
+@cached_njit(nogil=True)
 def _split_nodes(box_lo, box_hi, mid):
     """The binary tree over the leaves in pre-order: a node's leaves are split into two halves (the first
     ⌊m/2⌋ and the rest) of their order by the centre coordinate along the longer side of their bounding box
@@ -211,7 +213,7 @@ def _split_nodes(box_lo, box_hi, mid):
     return children, centre, first, last, order
 
 
-@njit(cache=True, nogil=True)
+@cached_njit(nogil=True)
 def _node_moments(nodes, vert, links, leaf_lo, leaf_hi, first, last, centre, coef, radius):
     """Radius R and coefficients (m_p / p, m_p, (p + 1) m_p) of the ``nodes``: the links of leaves
     first..last − 1 (in tree order) about the node's centre."""
@@ -280,15 +282,15 @@ def build_tree(vx, vy, tx, ty, L, sigma_links, ring_of_link, real, const, *, eps
     nodei[:, :2] = children
     leaf = nodei[:, 0] < 0
     nodei[leaf, 2:] = leaves[tree_order[first_a[leaf]]]
-    nodef = np.column_stack([centre, radius])
+    nodef = np.column_stack([centre, radius, np.log(radius)])
     s_tot = max(float(np.max(np.abs(sigma_links).T @ np.asarray(L, dtype=float))), 1e-300)
-    params = np.array([eps_value / (2.0 * s_tot), eps_gradient / (2.0 * s_tot),
-                       eps_hessian / (2.0 * s_tot * (order + 2)), float(const[0]), float(const[1]),
+    params = np.array([math.log(eps_value / (2.0 * s_tot)), math.log(eps_gradient / (2.0 * s_tot)),
+                       math.log(eps_hessian / (2.0 * s_tot * (order + 2))), float(const[0]), float(const[1]),
                        max_ratio * max_ratio])
     return PanelTree(vert, links, nodef, nodei, coef, params)
 
 
-@njit(cache=True, nogil=True)
+@cached_njit(nogil=True)
 def _direct(x, y, derivs, vert, links, lo, hi, out):
     """Closed-form sums of the links [lo, hi) added to ``out``."""
     dxp = x - vert[lo, 0]
@@ -342,9 +344,10 @@ def _direct(x, y, derivs, vert, links, lo, hi, out):
         angp = ang
 
 
-@njit(cache=True, nogil=True)
-def _expansion(dx, dy, R, P, derivs, coef, node, out):
-    """The expansion of ``node`` with terms p = 0..P at z − c = dx + i dy added to ``out``."""
+@cached_njit(nogil=True)
+def _expansion(dx, dy, ln_rho, R, P, derivs, coef, node, out):
+    """The expansion of ``node`` (radius R) with terms p = 0..P at z − c = dx + i dy (ln_rho = ln |z − c|)
+    added to ``out``."""
     d = complex(dx, dy)
     zeta = R / d
     f0u = 0j
@@ -361,51 +364,43 @@ def _expansion(dx, dy, R, P, derivs, coef, node, out):
             f1v = f1v * zeta + coef[node, 1, 1, p]
             f2u = f2u * zeta + coef[node, 0, 2, p]
             f2v = f2v * zeta + coef[node, 1, 2, p]
-    ln_rho = 0.5 * math.log(dx * dx + dy * dy)
     qu = coef[node, 0, 1, 0].real
     qv = coef[node, 1, 1, 0].real
     out[0] += 2.0 * (qu * ln_rho - f0u.real)
     out[1] += 2.0 * (qv * ln_rho - f0v.real)
-    if derivs:
-        inv = 1.0 / d
-        g_u = f1u * inv
-        g_v = f1v * inv
-        out[2] += 2.0 * g_u.real
-        out[3] -= 2.0 * g_u.imag
-        out[4] += 2.0 * g_v.real
-        out[5] -= 2.0 * g_v.imag
-        inv2 = inv * inv
-        h_u = -f2u * inv2
-        h_v = -f2v * inv2
-        out[6] += 2.0 * h_u.real
-        out[7] -= 2.0 * h_u.imag
-        out[8] += 2.0 * h_v.real
-        out[9] -= 2.0 * h_v.imag
+    if not derivs:
+        return
+    inv = 1.0 / d
+    g_u = f1u * inv
+    g_v = f1v * inv
+    out[2] += 2.0 * g_u.real
+    out[3] -= 2.0 * g_u.imag
+    out[4] += 2.0 * g_v.real
+    out[5] -= 2.0 * g_v.imag
+    inv2 = inv * inv
+    h_u = -f2u * inv2
+    h_v = -f2v * inv2
+    out[6] += 2.0 * h_u.real
+    out[7] -= 2.0 * h_u.imag
+    out[8] += 2.0 * h_v.real
+    out[9] -= 2.0 * h_v.imag
 
 
-@njit(cache=True, nogil=True)
-def _terms_needed(rho2, R, derivs, params, order):
-    """Highest term P the bounds need at ρ² = |z − c|², or order + 1 if the expansion cannot be used."""
-    if R * R >= params[5] * rho2:
-        return order + 1
-    rho = math.sqrt(rho2)
-    r = R / rho
-    q = 1.0 - r
-    k = params[0] * q
-    if derivs:
-        k = min(k, params[1] * rho * q, params[2] * rho2 * q * q)
-    need = math.ceil(math.log(k) / math.log(r)) - 1  # r^{P+1} <= k
+@cached_njit(nogil=True)
+def _terms(log_k, log_r, order):
+    """Least P ≥ 0 with r^{P+1} ≤ k (log_r < 0), or order + 1 if that is above ``order``."""
+    need = math.ceil(log_k / log_r) - 1
     if need < 0:
         return 0
-    if need > order:
-        return order + 1
-    return need
+    return min(need, order + 1)
 
 
-@njit(cache=True, nogil=True)
+@cached_njit(nogil=True)
 def tree_point(x, y, derivs, vert, links, nodef, nodei, coef, params, out):
     """out = u, v, ∂x u, ∂y u, ∂x v, ∂y v, u_xx, u_xy, v_xx, v_xy at (x, y) (the second derivatives only
-    with ``derivs``; u_yy = −u_xx)."""
+    with ``derivs``; u_yy = −u_xx).  A cluster is expanded where R / ρ is below the largest ratio and the
+    tolerances need at most ``order`` terms (module docstring); all three series are truncated at the largest P
+    of the three bounds, so the derivatives are as smooth along a path as the value."""
     order = coef.shape[3] - 1
     for i in range(10):
         out[i] = 0.0
@@ -417,11 +412,21 @@ def tree_point(x, y, derivs, vert, links, nodef, nodei, coef, params, out):
         node = stack[top]
         dx = x - nodef[node, 0]
         dy = y - nodef[node, 1]
+        rho2 = dx * dx + dy * dy
         R = nodef[node, 2]
-        P = _terms_needed(dx * dx + dy * dy, R, derivs, params, order)
-        if P <= order:
-            _expansion(dx, dy, R, P, derivs, coef, node, out)
-        elif nodei[node, 0] < 0:
+        if R * R < params[5] * rho2:
+            rho = math.sqrt(rho2)
+            ln_rho = math.log(rho)
+            log_r = nodef[node, 3] - ln_rho
+            log_q = math.log1p(-R / rho)
+            log_k = params[0] + log_q
+            if derivs:
+                log_k = min(log_k, params[1] + ln_rho + log_q, params[2] + 2.0 * (ln_rho + log_q))
+            P = _terms(log_k, log_r, order)
+            if P <= order:
+                _expansion(dx, dy, ln_rho, R, P, derivs, coef, node, out)
+                continue
+        if nodei[node, 0] < 0:
             _direct(x, y, derivs, vert, links, nodei[node, 2], nodei[node, 3], out)
         else:
             stack[top] = nodei[node, 1]
@@ -431,7 +436,17 @@ def tree_point(x, y, derivs, vert, links, nodef, nodei, coef, params, out):
     out[1] += params[4]
 
 
-@njit(cache=True, nogil=True)
+@cached_njit(nogil=True)
+def tree_point_arrays(x, y, derivs, vert, links, nodef, nodei, coef, params, out):
+    """``tree_point`` into out (14) = H (2), J_H (2 × 2) and the Hessians (2 × 2 × 2) in row-major order."""
+    tree_point(x, y, derivs, vert, links, nodef, nodei, coef, params, out)
+    if derivs:
+        uxx, uxy, vxx, vxy = out[6], out[7], out[8], out[9]
+        out[8], out[9] = uxy, -uxx
+        out[10], out[11], out[12], out[13] = vxx, vxy, vxy, -vxx
+
+
+@cached_njit(nogil=True)
 def tree_points(pts, derivs, vert, links, nodef, nodei, coef, params, out):
     """``tree_point`` at every row of ``pts``."""
     for i in range(pts.shape[0]):
