@@ -5,7 +5,8 @@ numba keys a cached kernel by the source of its own file only, but these kernels
 alone, numba would load the caller compiled with the old callee.  The cache here lives in a directory named by a
 hash of all of this package's sources, so an edited module never meets a stale compiled caller.  It is under
 ``NUMBA_CACHE_DIR`` when that is set, else in this package's ``__pycache__``, else in the user's cache directory;
-directories of earlier sources are removed when a new one is made.
+when a new one is made, those of other sources untouched for a day are removed (a process running other sources
+may still be writing to a newer one).
 """
 
 from __future__ import annotations
@@ -13,12 +14,14 @@ from __future__ import annotations
 import hashlib
 import os
 import shutil
+import time
 from pathlib import Path
 
 from numba import config, njit
 
 _HERE = Path(__file__).resolve().parent
 _PREFIX = "mrodrake-kernels-"
+_STALE_SECONDS = 86400.0
 
 
 def sources_key(package: Path = _HERE) -> str:
@@ -46,7 +49,12 @@ def _cache_dir() -> str | None:
     path = base / (_PREFIX + sources_key())
     if not path.exists():
         for old in base.glob(_PREFIX + "*"):
-            shutil.rmtree(old, ignore_errors=True)
+            try:
+                stale = time.time() - old.stat().st_mtime > _STALE_SECONDS
+            except OSError:
+                continue
+            if stale:
+                shutil.rmtree(old, ignore_errors=True)
     return str(path)
 
 
